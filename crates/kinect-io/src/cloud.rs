@@ -1,0 +1,645 @@
+//! Organized textured point clouds: one point per depth pixel, with its colour.
+//!
+//! Depth is converted from raw sensor units to metres here, at this boundary, and nowhere
+//! else. A pixel without valid depth is `None`; a point that the colour camera does not see
+//! (outside its image, or occluded by a nearer surface) has `rgb: None`.
+
+use image::RgbImage;
+use nalgebra::{Isometry3, Point3};
+
+use crate::calibration::{Calibration, RegistrationModel};
+use crate::camera::CameraModel;
+use crate::depth::DepthImage;
+use crate::error::{KinectError, Result};
+use crate::freenect2::{
+    FREENECT2_FILTER_HALF_HEIGHT_PX, FREENECT2_FILTER_HALF_WIDTH_PX, FREENECT2_FILTER_TOLERANCE,
+    Freenect2Frame, Freenect2Registration,
+};
+
+/// One point of a textured cloud.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TexturedPoint {
+    /// Position in metres, in the cloud's frame.
+    pub position_m: Point3<f64>,
+    /// Colour, or `None` when the colour camera does not see the point.
+    pub rgb: Option<[u8; 3]>,
+}
+
+/// An organized textured point cloud: `width * height` entries, row-major, one per depth pixel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TexturedCloud {
+    width: u32,
+    height: u32,
+    points: Vec<Option<TexturedPoint>>,
+    source_camera: CameraModel,
+    camera_to_cloud: Isometry3<f64>,
+}
+
+impl TexturedCloud {
+    /// An organized cloud from its points (`width * height`, row-major), the camera whose
+    /// pixels they are, and the transform from that camera's frame to the cloud's frame
+    /// (identity when the points are in the camera frame).
+    ///
+    /// # Errors
+    /// [`KinectError::SizeMismatch`] when the point count or camera size does not match.
+    pub fn new(
+        width: u32,
+        height: u32,
+        points: Vec<Option<TexturedPoint>>,
+        source_camera: CameraModel,
+        camera_to_cloud: Isometry3<f64>,
+    ) -> Result<Self> {
+        if points.len() != width as usize * height as usize
+            || (source_camera.width, source_camera.height) != (width, height)
+        {
+            return Err(KinectError::SizeMismatch {
+                what: "organized cloud points vs. source camera".into(),
+                expected_width: source_camera.width,
+                expected_height: source_camera.height,
+                found_width: width,
+                found_height: (points.len() / width.max(1) as usize) as u32,
+            });
+        }
+        Ok(Self {
+            width,
+            height,
+            points,
+            source_camera,
+            camera_to_cloud,
+        })
+    }
+
+    /// Width (depth pixels).
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height (depth pixels).
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// All entries, row-major.
+    pub fn points(&self) -> &[Option<TexturedPoint>] {
+        &self.points
+    }
+
+    /// The entry of depth pixel `(u, v)`; `None` outside the grid or where there is no depth.
+    pub fn get(&self, u: u32, v: u32) -> Option<&TexturedPoint> {
+        if u < self.width && v < self.height {
+            self.points[v as usize * self.width as usize + u as usize].as_ref()
+        } else {
+            None
+        }
+    }
+
+    /// The camera whose pixels the entries are (the depth camera).
+    pub fn source_camera(&self) -> &CameraModel {
+        &self.source_camera
+    }
+
+    /// The transform from the source camera's frame to the cloud's frame.
+    pub fn camera_to_cloud(&self) -> &Isometry3<f64> {
+        &self.camera_to_cloud
+    }
+
+    /// Number of points with depth.
+    pub fn valid_count(&self) -> usize {
+        self.points.iter().filter(|p| p.is_some()).count()
+    }
+
+    /// The points with depth, with their flat index.
+    pub fn iter_valid(&self) -> impl Iterator<Item = (usize, &TexturedPoint)> {
+        self.points
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| p.as_ref().map(|p| (i, p)))
+    }
+
+    /// Axis-aligned bounding box `(min, max)` of the valid points; `None` when there are none.
+    pub fn bounding_box(&self) -> Option<(Point3<f64>, Point3<f64>)> {
+        let mut it = self.iter_valid();
+        let first = it.next()?.1.position_m;
+        let (mut lo, mut hi) = (first, first);
+        for (_, p) in it {
+            lo = lo.inf(&p.position_m);
+            hi = hi.sup(&p.position_m);
+        }
+        Some((lo, hi))
+    }
+
+    /// The same cloud with every point moved by `transform` (for example
+    /// [`crate::camera_to_world_z_up`] to go to a Z-up world frame).
+    pub fn transformed(&self, transform: &Isometry3<f64>) -> Self {
+        let mut out = self.clone();
+        for p in out.points.iter_mut().flatten() {
+            p.position_m = transform * p.position_m;
+        }
+        out.camera_to_cloud = transform * self.camera_to_cloud;
+        out
+    }
+}
+
+/// The occlusion filter of depth-to-colour registration: a depth pixel gets no colour when the
+/// colour camera sees a nearer surface at (or next to) its colour pixel. Defaults are
+/// libfreenect2's (5x3 colour pixels, 1 % depth tolerance).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OcclusionFilter {
+    /// Half-width of the window in colour pixels (default 2).
+    pub half_width_px: u32,
+    /// Half-height of the window in colour pixels (default 1).
+    pub half_height_px: u32,
+    /// Relative depth margin: a point further than `(1 + tolerance)` times the nearest depth
+    /// in its window is occluded (default 0.01).
+    pub tolerance: f64,
+}
+
+impl Default for OcclusionFilter {
+    fn default() -> Self {
+        Self {
+            half_width_px: FREENECT2_FILTER_HALF_WIDTH_PX as u32,
+            half_height_px: FREENECT2_FILTER_HALF_HEIGHT_PX as u32,
+            tolerance: f64::from(FREENECT2_FILTER_TOLERANCE),
+        }
+    }
+}
+
+/// Options of [`CloudBuilder`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CloudConfig {
+    /// Occlusion filter for the colours; `None` to colour every point from wherever it
+    /// projects. Default: libfreenect2's filter. (libfreenect2's own filter is always used
+    /// with the libfreenect2 model when this is `Some`.)
+    pub occlusion_filter: Option<OcclusionFilter>,
+    /// Depths below this are dropped (metres, default 0: keep everything the sensor reports).
+    pub min_depth_m: f64,
+    /// Depths above this are dropped (metres, default infinity). Handy to cut away a wall
+    /// behind the tree.
+    pub max_depth_m: f64,
+    /// Transform applied to every point, from the depth camera frame to the cloud's frame
+    /// (default `None`: the depth camera frame). See [`crate::camera_to_world_z_up`].
+    pub camera_to_world: Option<Isometry3<f64>>,
+}
+
+impl Default for CloudConfig {
+    fn default() -> Self {
+        Self {
+            occlusion_filter: Some(OcclusionFilter::default()),
+            min_depth_m: 0.0,
+            max_depth_m: f64::INFINITY,
+            camera_to_world: None,
+        }
+    }
+}
+
+impl CloudConfig {
+    /// Check the ranges.
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] for a negative or NaN depth range, an empty range,
+    /// or a negative or NaN filter tolerance.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.min_depth_m >= 0.0 && self.max_depth_m > self.min_depth_m) {
+            return Err(KinectError::param(
+                "depth range",
+                format!(
+                    "min {} m .. max {} m is empty or negative",
+                    self.min_depth_m, self.max_depth_m
+                ),
+            ));
+        }
+        if let Some(f) = &self.occlusion_filter
+            && !(f.tolerance >= 0.0 && f.tolerance.is_finite())
+        {
+            return Err(KinectError::param(
+                "occlusion filter tolerance",
+                format!("{} must be finite and non-negative", f.tolerance),
+            ));
+        }
+        Ok(())
+    }
+}
+
+enum Engine {
+    /// Rigid or already registered: per-pixel undistorted rays and the transform.
+    Rays {
+        rays: Vec<Option<[f64; 2]>>,
+        depth_to_color: Option<Isometry3<f64>>,
+    },
+    Freenect2 {
+        registration: Box<Freenect2Registration>,
+        frame: Freenect2Frame,
+        depth_mm: Vec<f32>,
+    },
+}
+
+/// Builds organized textured clouds from depth + colour frames of one calibrated camera.
+///
+/// All per-camera work (undistortion tables, libfreenect2 maps) is done once in
+/// [`CloudBuilder::new`]; [`CloudBuilder::build_into`] then allocates nothing.
+pub struct CloudBuilder {
+    calibration: Calibration,
+    config: CloudConfig,
+    engine: Engine,
+    /// Nearest depth per colour pixel (occlusion filter), reused between frames.
+    filter_map: Vec<f32>,
+    /// Colour pixel of each depth pixel (flat index), reused between frames.
+    color_index: Vec<u32>,
+}
+
+const NO_COLOR: u32 = u32::MAX;
+
+impl CloudBuilder {
+    /// Prepare for one calibration.
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] when the calibration or the config is invalid.
+    pub fn new(calibration: &Calibration, config: CloudConfig) -> Result<Self> {
+        calibration.validate()?;
+        config.validate()?;
+        let engine = match &calibration.registration {
+            RegistrationModel::Freenect2 { ir, color } => {
+                let registration = Freenect2Registration::new(*ir, *color)?;
+                let n = calibration.depth_camera.pixel_count();
+                Engine::Freenect2 {
+                    registration: Box::new(registration),
+                    frame: Freenect2Frame {
+                        undistorted_mm: vec![0.0; n],
+                        registered: vec![None; n],
+                    },
+                    depth_mm: vec![0.0; n],
+                }
+            }
+            RegistrationModel::Rigid(_) | RegistrationModel::AlreadyRegistered => Engine::Rays {
+                rays: calibration
+                    .depth_camera
+                    .ray_table()
+                    .into_iter()
+                    .map(|r| r.map(|r| [r.x, r.y]))
+                    .collect(),
+                depth_to_color: match calibration.registration {
+                    RegistrationModel::AlreadyRegistered => None,
+                    _ => calibration.depth_to_color()?,
+                },
+            },
+        };
+        Ok(Self {
+            calibration: calibration.clone(),
+            config,
+            engine,
+            filter_map: Vec::new(),
+            color_index: vec![NO_COLOR; calibration.depth_camera.pixel_count()],
+        })
+    }
+
+    /// The calibration this builder uses.
+    pub fn calibration(&self) -> &Calibration {
+        &self.calibration
+    }
+
+    /// Build the cloud of one frame.
+    ///
+    /// # Errors
+    /// [`KinectError::SizeMismatch`] when the depth or colour image does not have its camera's
+    /// size; [`KinectError::NoValidDepth`] when no pixel has a valid depth.
+    pub fn build(&mut self, depth: &DepthImage, color: &RgbImage) -> Result<TexturedCloud> {
+        let camera = self.calibration.depth_camera;
+        let mut cloud = TexturedCloud {
+            width: camera.width,
+            height: camera.height,
+            points: vec![None; camera.pixel_count()],
+            source_camera: camera,
+            camera_to_cloud: Isometry3::identity(),
+        };
+        self.build_into(depth, color, &mut cloud)?;
+        Ok(cloud)
+    }
+
+    /// [`CloudBuilder::build`] into an existing cloud (reusing its storage).
+    ///
+    /// # Errors
+    /// As [`CloudBuilder::build`].
+    pub fn build_into(
+        &mut self,
+        depth: &DepthImage,
+        color: &RgbImage,
+        cloud: &mut TexturedCloud,
+    ) -> Result<()> {
+        let dcam = self.calibration.depth_camera;
+        let ccam = self.calibration.color_camera;
+        check_size("depth image", &dcam, depth.width(), depth.height())?;
+        check_size("colour image", &ccam, color.width(), color.height())?;
+        cloud.width = dcam.width;
+        cloud.height = dcam.height;
+        cloud.source_camera = dcam;
+        cloud.camera_to_cloud = self
+            .config
+            .camera_to_world
+            .unwrap_or_else(Isometry3::identity);
+        cloud.points.clear();
+        cloud.points.resize(dcam.pixel_count(), None);
+        let unit_m = depth.unit_m();
+        let offset_m = self.calibration.depth_offset_m;
+        let (min_z, max_z) = (self.config.min_depth_m, self.config.max_depth_m);
+        let mut valid = 0usize;
+        match &mut self.engine {
+            Engine::Rays {
+                rays,
+                depth_to_color,
+            } => {
+                let filter = self.config.occlusion_filter;
+                if filter.is_some() {
+                    self.filter_map.clear();
+                    self.filter_map.resize(ccam.pixel_count(), f32::INFINITY);
+                }
+                let cw = ccam.width as i64;
+                let ch = ccam.height as i64;
+                for (i, (&raw, ray)) in depth.values().iter().zip(rays.iter()).enumerate() {
+                    self.color_index[i] = NO_COLOR;
+                    let Some([rx, ry]) = *ray else { continue };
+                    if raw == 0 {
+                        continue;
+                    }
+                    let z = f64::from(raw) * unit_m + offset_m;
+                    if !(z > min_z && z <= max_z) {
+                        continue;
+                    }
+                    let p = Point3::new(rx * z, ry * z, z);
+                    valid += 1;
+                    cloud.points[i] = Some(TexturedPoint {
+                        position_m: p,
+                        rgb: None,
+                    });
+                    // Colour pixel of this point.
+                    let (cu, cv, zc) = match depth_to_color {
+                        None => (
+                            (i % dcam.width as usize) as i64,
+                            (i / dcam.width as usize) as i64,
+                            z,
+                        ),
+                        Some(t) => {
+                            let pc = *t * p;
+                            let Some(px) = ccam.project(&pc) else {
+                                continue;
+                            };
+                            let cu = (px.x + 0.5).floor();
+                            let cv = (px.y + 0.5).floor();
+                            if !(cu >= 0.0 && cv >= 0.0 && cu < cw as f64 && cv < ch as f64) {
+                                continue;
+                            }
+                            (cu as i64, cv as i64, pc.z)
+                        }
+                    };
+                    let ci = (cv * cw + cu) as u32;
+                    self.color_index[i] = ci;
+                    if let Some(f) = &filter {
+                        let zf = zc as f32;
+                        let (hw, hh) = (i64::from(f.half_width_px), i64::from(f.half_height_px));
+                        for y in (cv - hh).max(0)..=(cv + hh).min(ch - 1) {
+                            let row = (y * cw) as usize;
+                            for x in (cu - hw).max(0)..=(cu + hw).min(cw - 1) {
+                                let slot = &mut self.filter_map[row + x as usize];
+                                if zf < *slot {
+                                    *slot = zf;
+                                }
+                            }
+                        }
+                    }
+                }
+                let raw = color.as_raw();
+                for (i, point) in cloud.points.iter_mut().enumerate() {
+                    let ci = self.color_index[i];
+                    let Some(point) = point else { continue };
+                    if ci == NO_COLOR {
+                        continue;
+                    }
+                    if let Some(f) = &filter {
+                        let zc = match depth_to_color {
+                            None => point.position_m.z,
+                            Some(t) => (*t * point.position_m).z,
+                        };
+                        let min_z = f64::from(self.filter_map[ci as usize]);
+                        if (zc - min_z) / zc > f.tolerance {
+                            continue;
+                        }
+                    }
+                    let c = 3 * ci as usize;
+                    point.rgb = Some([raw[c], raw[c + 1], raw[c + 2]]);
+                }
+            }
+            Engine::Freenect2 {
+                registration,
+                frame,
+                depth_mm,
+            } => {
+                let scale_mm = (unit_m * 1000.0) as f32;
+                for (out, &raw) in depth_mm.iter_mut().zip(depth.values()) {
+                    *out = f32::from(raw) * scale_mm;
+                }
+                registration.apply_into(
+                    depth_mm,
+                    color,
+                    self.config.occlusion_filter.is_some(),
+                    frame,
+                )?;
+                let (fx, fy, cx, cy) = (dcam.fx, dcam.fy, dcam.cx, dcam.cy);
+                let w = dcam.width as usize;
+                for (i, (&z_mm, rgb)) in frame
+                    .undistorted_mm
+                    .iter()
+                    .zip(frame.registered.iter())
+                    .enumerate()
+                {
+                    if z_mm.is_nan() || z_mm <= 0.0 {
+                        continue;
+                    }
+                    let z = f64::from(z_mm) * 1e-3 + offset_m;
+                    if !(z > min_z && z <= max_z) {
+                        continue;
+                    }
+                    let (u, v) = ((i % w) as f64, (i / w) as f64);
+                    valid += 1;
+                    cloud.points[i] = Some(TexturedPoint {
+                        position_m: Point3::new((u - cx) / fx * z, (v - cy) / fy * z, z),
+                        rgb: *rgb,
+                    });
+                }
+            }
+        }
+        if valid == 0 {
+            return Err(KinectError::NoValidDepth {
+                what: format!("depth frame {}x{} px", depth.width(), depth.height()),
+            });
+        }
+        if let Some(t) = &self.config.camera_to_world {
+            for p in cloud.points.iter_mut().flatten() {
+                p.position_m = t * p.position_m;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn check_size(what: &str, camera: &CameraModel, width: u32, height: u32) -> Result<()> {
+    if (camera.width, camera.height) != (width, height) {
+        return Err(KinectError::SizeMismatch {
+            what: format!("{what} vs. its calibrated camera"),
+            expected_width: camera.width,
+            expected_height: camera.height,
+            found_width: width,
+            found_height: height,
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::Calibration;
+    use approx::assert_relative_eq;
+
+    fn flat_wall(calibration: &Calibration, depth_raw: u16) -> (DepthImage, RgbImage) {
+        let d = calibration.depth_camera;
+        let c = calibration.color_camera;
+        let depth = DepthImage::new(
+            d.width,
+            d.height,
+            calibration.depth_unit_m,
+            vec![depth_raw; d.pixel_count()],
+        )
+        .expect("size");
+        let color = RgbImage::from_fn(c.width, c.height, |u, v| {
+            image::Rgb([(u % 256) as u8, (v % 256) as u8, 7])
+        });
+        (depth, color)
+    }
+
+    #[test]
+    fn wall_points_have_the_wall_depth_and_the_colour_of_their_projection() {
+        let calibration = Calibration::kinect_v2();
+        let (depth, color) = flat_wall(&calibration, 2000);
+        let mut builder = CloudBuilder::new(&calibration, CloudConfig::default()).expect("valid");
+        let cloud = builder.build(&depth, &color).expect("valid depth");
+        assert_eq!(cloud.valid_count(), calibration.depth_camera.pixel_count());
+        let p = cloud.get(256, 207).expect("centre");
+        assert_relative_eq!(p.position_m.z, 2.0, epsilon = 1e-12);
+        // Its colour is the colour pixel it projects to.
+        let t = calibration.depth_to_color().expect("rigid").expect("some");
+        let px = calibration
+            .color_camera
+            .project(&(t * p.position_m))
+            .expect("front");
+        let expected = color.get_pixel((px.x + 0.5).floor() as u32, (px.y + 0.5).floor() as u32);
+        assert_eq!(p.rgb, Some(expected.0));
+    }
+
+    #[test]
+    fn all_zero_depth_is_an_error() {
+        let calibration = Calibration::kinect_v2();
+        let (depth, color) = flat_wall(&calibration, 0);
+        let mut builder = CloudBuilder::new(&calibration, CloudConfig::default()).expect("valid");
+        assert!(matches!(
+            builder.build(&depth, &color),
+            Err(KinectError::NoValidDepth { .. })
+        ));
+    }
+
+    #[test]
+    fn mismatched_sizes_are_errors() {
+        let calibration = Calibration::kinect_v2();
+        let (_, color) = flat_wall(&calibration, 1000);
+        let depth = DepthImage::new(640, 480, 0.001, vec![1000; 640 * 480]).expect("size");
+        let mut builder = CloudBuilder::new(&calibration, CloudConfig::default()).expect("valid");
+        assert!(matches!(
+            builder.build(&depth, &color),
+            Err(KinectError::SizeMismatch {
+                expected_width: 512,
+                found_width: 640,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn occluded_background_loses_its_colour() {
+        let calibration = Calibration::kinect_v2();
+        let (mut depth, color) = flat_wall(&calibration, 3000);
+        // A near post in front of the wall.
+        for v in 0..424 {
+            for u in 240..260 {
+                depth.values_mut()[v * 512 + u] = 1000;
+            }
+        }
+        let mut filtered = CloudBuilder::new(&calibration, CloudConfig::default()).expect("ok");
+        let mut plain = CloudBuilder::new(
+            &calibration,
+            CloudConfig {
+                occlusion_filter: None,
+                ..CloudConfig::default()
+            },
+        )
+        .expect("ok");
+        let a = filtered.build(&depth, &color).expect("ok");
+        let b = plain.build(&depth, &color).expect("ok");
+        let coloured = |c: &TexturedCloud| c.iter_valid().filter(|(_, p)| p.rgb.is_some()).count();
+        assert!(
+            coloured(&a) < coloured(&b),
+            "{} vs {}",
+            coloured(&a),
+            coloured(&b)
+        );
+        assert!(
+            a.get(250, 200).and_then(|p| p.rgb).is_some(),
+            "the post keeps its colour"
+        );
+    }
+
+    #[test]
+    fn freenect2_pinhole_model_matches_the_rigid_model() {
+        use crate::freenect2::{Freenect2ColorParams, Freenect2IrParams};
+        let ir = Freenect2IrParams {
+            fx: 365.5,
+            fy: 365.5,
+            cx: 256.0,
+            cy: 207.0,
+            k1: 0.0,
+            k2: 0.0,
+            k3: 0.0,
+            p1: 0.0,
+            p2: 0.0,
+        };
+        let color = Freenect2ColorParams::from_pinhole_baseline(&ir, 1081.37, 959.5, 539.5, 52.0);
+        let f2 = Calibration::freenect2(ir, color);
+        let mut rigid = f2.clone();
+        rigid.registration =
+            crate::calibration::RegistrationModel::Rigid(crate::calibration::Extrinsics {
+                translation_m: [0.052, 0.0, 0.0],
+                ..crate::calibration::Extrinsics::identity()
+            });
+        let (depth, colour) = flat_wall(&f2, 1500);
+        let config = CloudConfig {
+            occlusion_filter: None,
+            ..CloudConfig::default()
+        };
+        let a = CloudBuilder::new(&f2, config)
+            .expect("ok")
+            .build(&depth, &colour)
+            .expect("ok");
+        let b = CloudBuilder::new(&rigid, config)
+            .expect("ok")
+            .build(&depth, &colour)
+            .expect("ok");
+        let mut same = 0;
+        let mut total = 0;
+        for (pa, pb) in a.points().iter().zip(b.points()) {
+            if let (Some(pa), Some(pb)) = (pa, pb) {
+                assert_relative_eq!(pa.position_m, pb.position_m, epsilon = 1e-9);
+                total += 1;
+                same += usize::from(pa.rgb == pb.rgb);
+            }
+        }
+        // Rounding of f32 vs f64 may move a colour pixel at exact half-pixel ties only.
+        assert!(same * 1000 >= total * 999, "{same} of {total}");
+    }
+}

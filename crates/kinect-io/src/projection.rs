@@ -1,0 +1,491 @@
+//! The projection image (paper section 4 and 5.2): a textured cloud splatted onto the image
+//! plane of any camera with a z-buffer, giving an RGB image to track markers on and, for every
+//! pixel, the cloud point it shows; and [`ProjectionImage::lift`], which turns a tracked
+//! sub-pixel position back into a 3D point.
+
+use image::RgbImage;
+use nalgebra::{Isometry3, Point2, Point3};
+
+use crate::camera::CameraModel;
+use crate::cloud::TexturedCloud;
+use crate::error::{KinectError, Result};
+
+/// Largest splat half-size in pixels that [`Splat::Auto`] uses (a 13x13 square): beyond that a
+/// cloud is being viewed from far closer than it was captured, and holes are the honest answer.
+pub const MAX_AUTO_SPLAT_RADIUS_PX: u32 = 6;
+
+/// Extra footprint for [`Splat::Auto`]: lens distortion makes the spacing of depth rays vary
+/// by up to about 10 % over a Kinect V2 image, so squares are sized for 15 % more than the
+/// nominal footprint.
+const SPLAT_MARGIN: f64 = 0.15;
+/// Half-size slack of [`Splat::Auto`] in pixels, so that a footprint of exactly one pixel (a
+/// cloud seen from its own camera) stays one pixel.
+const SPLAT_SLACK_PX: f64 = 0.1;
+
+const NO_POINT: u32 = u32::MAX;
+
+/// How large a square each point covers on the projection image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Splat {
+    /// The point's own footprint: a depth pixel at depth `z` is `z / f_depth` metres wide, so
+    /// `s = f_target z / (f_depth z_target)` pixels on the target image; the square is the
+    /// smallest odd size covering `1.15 s` (margin for lens distortion; capped at
+    /// [`MAX_AUTO_SPLAT_RADIUS_PX`]). Leaves no holes inside surfaces when magnifying (for
+    /// example onto the 1920x1080 colour plane) and one pixel per point when `s = 1`.
+    #[default]
+    Auto,
+    /// A fixed half-size: 0 is one pixel per point, 1 a 3x3 square, ...
+    Radius(u32),
+}
+
+/// Options of [`project_cloud`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProjectionConfig {
+    /// Point footprint (default [`Splat::Auto`]).
+    pub splat: Splat,
+    /// Colour of pixels that show no point (default black).
+    pub background_rgb: [u8; 3],
+    /// Colour drawn for points that have depth but no colour (default black). They still take
+    /// part in the z-buffer: they are real surfaces.
+    pub uncolored_rgb: [u8; 3],
+}
+
+impl Default for ProjectionConfig {
+    fn default() -> Self {
+        Self {
+            splat: Splat::Auto,
+            background_rgb: [0, 0, 0],
+            uncolored_rgb: [0, 0, 0],
+        }
+    }
+}
+
+/// Options of [`ProjectionImage::lift`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LiftConfig {
+    /// Neighbourhood radius in projection-image pixels (default 2: up to 13 pixels).
+    pub radius_px: f64,
+    /// Absolute depth tolerance in metres around the reference depth (default 0.02 m): points
+    /// further from the reference are on another surface and do not vote.
+    pub depth_tolerance_m: f64,
+    /// Relative depth tolerance (default 0.01, i.e. 2 cm at 2 m); the larger of the two
+    /// tolerances is used, so that sensor noise growing with depth does not split a surface.
+    pub depth_tolerance_ratio: f64,
+}
+
+impl Default for LiftConfig {
+    fn default() -> Self {
+        Self {
+            radius_px: 2.0,
+            depth_tolerance_m: 0.02,
+            depth_tolerance_ratio: 0.01,
+        }
+    }
+}
+
+impl LiftConfig {
+    /// Check the ranges.
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] for a negative or non-finite radius or tolerance.
+    pub fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("lift radius_px", self.radius_px),
+            ("lift depth_tolerance_m", self.depth_tolerance_m),
+            ("lift depth_tolerance_ratio", self.depth_tolerance_ratio),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(KinectError::param(
+                    name,
+                    format!("{v} must be finite and >= 0"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A textured cloud seen from a camera: the RGB image, and per pixel the index of the cloud
+/// point it shows and that point's depth in the projection camera.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProjectionImage {
+    camera: CameraModel,
+    cloud_to_camera: Isometry3<f64>,
+    image: RgbImage,
+    index: Vec<u32>,
+    depth_m: Vec<f32>,
+}
+
+/// Splat `cloud` onto `camera`, placed by `cloud_to_camera` (the transform from the cloud's
+/// frame to the camera's frame; identity to view a camera-frame cloud from its own depth
+/// camera).
+///
+/// # Errors
+/// [`KinectError::InvalidParameter`] for an invalid camera.
+pub fn project_cloud(
+    cloud: &TexturedCloud,
+    camera: &CameraModel,
+    cloud_to_camera: &Isometry3<f64>,
+    config: &ProjectionConfig,
+) -> Result<ProjectionImage> {
+    camera.validate()?;
+    let mut out = ProjectionImage {
+        camera: *camera,
+        cloud_to_camera: *cloud_to_camera,
+        image: RgbImage::new(camera.width, camera.height),
+        index: Vec::new(),
+        depth_m: Vec::new(),
+    };
+    out.render(cloud, config);
+    Ok(out)
+}
+
+impl ProjectionImage {
+    /// Re-render for a new cloud with the same camera and placement, reusing every buffer.
+    pub fn update(&mut self, cloud: &TexturedCloud, config: &ProjectionConfig) {
+        self.render(cloud, config);
+    }
+
+    fn render(&mut self, cloud: &TexturedCloud, config: &ProjectionConfig) {
+        let cam = self.camera;
+        let n = cam.pixel_count();
+        self.index.clear();
+        self.index.resize(n, NO_POINT);
+        self.depth_m.clear();
+        self.depth_m.resize(n, f32::INFINITY);
+        for px in self.image.pixels_mut() {
+            px.0 = config.background_rgb;
+        }
+        let (w, h) = (i64::from(cam.width), i64::from(cam.height));
+        let source = cloud.source_camera();
+        let source_f = 0.5 * (source.fx + source.fy);
+        let target_f = 0.5 * (cam.fx + cam.fy);
+        let cloud_to_source = cloud.camera_to_cloud().inverse();
+        let identity_source = *cloud.camera_to_cloud() == Isometry3::identity();
+        let raw = self.image.as_mut();
+        for (i, p) in cloud.iter_valid() {
+            let pc = self.cloud_to_camera * p.position_m;
+            let Some(px) = cam.project(&pc) else { continue };
+            let radius = match config.splat {
+                Splat::Radius(r) => i64::from(r),
+                Splat::Auto => {
+                    let z_source = if identity_source {
+                        p.position_m.z
+                    } else {
+                        (cloud_to_source * p.position_m).z
+                    };
+                    let size = target_f * z_source / (source_f * pc.z);
+                    let r = ((size * (1.0 + SPLAT_MARGIN) - 1.0) * 0.5 - SPLAT_SLACK_PX).ceil();
+                    if r.is_finite() {
+                        r.clamp(0.0, f64::from(MAX_AUTO_SPLAT_RADIUS_PX)) as i64
+                    } else {
+                        0
+                    }
+                }
+            };
+            let cu = (px.x + 0.5).floor();
+            let cv = (px.y + 0.5).floor();
+            if !(cu >= -(radius as f64) && cv >= -(radius as f64))
+                || cu >= (w + radius) as f64
+                || cv >= (h + radius) as f64
+            {
+                continue;
+            }
+            let (cu, cv) = (cu as i64, cv as i64);
+            let z = pc.z as f32;
+            let rgb = p.rgb.unwrap_or(config.uncolored_rgb);
+            for y in (cv - radius).max(0)..=(cv + radius).min(h - 1) {
+                let row = (y * w) as usize;
+                for x in (cu - radius).max(0)..=(cu + radius).min(w - 1) {
+                    let at = row + x as usize;
+                    if z < self.depth_m[at] {
+                        self.depth_m[at] = z;
+                        self.index[at] = i as u32;
+                        raw[3 * at..3 * at + 3].copy_from_slice(&rgb);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The camera of this image.
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
+    }
+
+    /// The transform from the cloud's frame to the camera's frame.
+    pub fn cloud_to_camera(&self) -> &Isometry3<f64> {
+        &self.cloud_to_camera
+    }
+
+    /// The RGB image (for tracking; write it with `image`'s `save`).
+    pub fn image(&self) -> &RgbImage {
+        &self.image
+    }
+
+    /// Index into the cloud's points of the point shown at pixel `(u, v)`; `None` for
+    /// background or outside the image.
+    pub fn point_index(&self, u: u32, v: u32) -> Option<usize> {
+        if u >= self.camera.width || v >= self.camera.height {
+            return None;
+        }
+        let i = self.index[v as usize * self.camera.width as usize + u as usize];
+        (i != NO_POINT).then_some(i as usize)
+    }
+
+    /// Depth (metres, along the projection camera's axis) of the point shown at `(u, v)`.
+    pub fn depth_m(&self, u: u32, v: u32) -> Option<f64> {
+        self.point_index(u, v)
+            .map(|_| f64::from(self.depth_m[v as usize * self.camera.width as usize + u as usize]))
+    }
+
+    /// Number of pixels that show a point.
+    pub fn covered_pixels(&self) -> usize {
+        self.index.iter().filter(|&&i| i != NO_POINT).count()
+    }
+
+    /// Lift a sub-pixel position of this image to a 3D point of `cloud` (the cloud this image
+    /// was rendered from), in the cloud's frame.
+    ///
+    /// Robust by construction: it gathers the points shown within `radius_px` of `pixel`, takes
+    /// the depth of the one nearest to `pixel` as the reference surface, drops points beyond
+    /// the depth tolerance of that surface (no averaging across a depth edge: a marker in front
+    /// of a trunk stays on the marker), and returns the per-axis median of the distinct points
+    /// left. `None` when no point is shown near `pixel`, when `pixel` is not finite, or when the
+    /// image was rendered from a different cloud (index out of range).
+    pub fn lift(
+        &self,
+        cloud: &TexturedCloud,
+        pixel: &Point2<f64>,
+        config: &LiftConfig,
+    ) -> Option<Point3<f64>> {
+        let mut scratch = Vec::new();
+        self.lift_with(cloud, pixel, config, &mut scratch)
+    }
+
+    /// [`ProjectionImage::lift`] reusing a scratch buffer (no allocation once it has grown).
+    pub fn lift_with(
+        &self,
+        cloud: &TexturedCloud,
+        pixel: &Point2<f64>,
+        config: &LiftConfig,
+        scratch: &mut Vec<(f64, f32, u32)>,
+    ) -> Option<Point3<f64>> {
+        let finite = pixel.x.is_finite() && pixel.y.is_finite() && config.radius_px.is_finite();
+        if !finite || config.radius_px < 0.0 {
+            return None;
+        }
+        let r = config.radius_px;
+        let (w, h) = (f64::from(self.camera.width), f64::from(self.camera.height));
+        let x0 = (pixel.x - r).ceil().max(0.0);
+        let x1 = (pixel.x + r).floor().min(w - 1.0);
+        let y0 = (pixel.y - r).ceil().max(0.0);
+        let y1 = (pixel.y + r).floor().min(h - 1.0);
+        scratch.clear();
+        if x0 > x1 || y0 > y1 {
+            // Also covers a radius smaller than the distance to any pixel centre: fall back to
+            // the pixel holding the position.
+            let (u, v) = self.camera.pixel_at(pixel)?;
+            let i = self.point_index(u, v)?;
+            return cloud
+                .points()
+                .get(i)
+                .copied()
+                .flatten()
+                .map(|p| p.position_m);
+        }
+        let mut y = y0;
+        while y <= y1 {
+            let mut x = x0;
+            while x <= x1 {
+                let d2 = (x - pixel.x).powi(2) + (y - pixel.y).powi(2);
+                if d2 <= r * r {
+                    let at = y as usize * self.camera.width as usize + x as usize;
+                    let i = self.index[at];
+                    if i != NO_POINT {
+                        scratch.push((d2, self.depth_m[at], i));
+                    }
+                }
+                x += 1.0;
+            }
+            y += 1.0;
+        }
+        if scratch.is_empty() {
+            let (u, v) = self.camera.pixel_at(pixel)?;
+            let i = self.point_index(u, v)?;
+            return cloud
+                .points()
+                .get(i)
+                .copied()
+                .flatten()
+                .map(|p| p.position_m);
+        }
+        let reference = scratch
+            .iter()
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)))
+            .map(|c| f64::from(c.1))?;
+        let tolerance = config
+            .depth_tolerance_m
+            .max(config.depth_tolerance_ratio * reference);
+        scratch.retain(|c| (f64::from(c.1) - reference).abs() <= tolerance);
+        scratch.sort_unstable_by_key(|c| c.2);
+        scratch.dedup_by_key(|c| c.2);
+        let mut xs = Vec::with_capacity(scratch.len());
+        let mut ys = Vec::with_capacity(scratch.len());
+        let mut zs = Vec::with_capacity(scratch.len());
+        for c in scratch.iter() {
+            let p = cloud.points().get(c.2 as usize).copied().flatten()?;
+            xs.push(p.position_m.x);
+            ys.push(p.position_m.y);
+            zs.push(p.position_m.z);
+        }
+        Some(Point3::new(
+            median(&mut xs)?,
+            median(&mut ys)?,
+            median(&mut zs)?,
+        ))
+    }
+}
+
+/// Median of a non-empty slice (mean of the two middle values for an even count).
+fn median(values: &mut [f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_unstable_by(f64::total_cmp);
+    let n = values.len();
+    Some(if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        0.5 * (values[n / 2 - 1] + values[n / 2])
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::Calibration;
+    use crate::cloud::{CloudBuilder, CloudConfig};
+    use crate::depth::DepthImage;
+    use approx::assert_relative_eq;
+
+    /// A wall at 2 m with a 40x40 px square patch at 1 m.
+    fn scene() -> (TexturedCloud, Calibration) {
+        let calibration = Calibration::kinect_v2();
+        let d = calibration.depth_camera;
+        let mut values = vec![2000u16; d.pixel_count()];
+        for v in 180..220 {
+            for u in 230..270 {
+                values[v * 512 + u] = 1000;
+            }
+        }
+        let depth = DepthImage::new(d.width, d.height, 0.001, values).expect("size");
+        let color = RgbImage::from_pixel(1920, 1080, image::Rgb([200, 10, 10]));
+        let cloud = CloudBuilder::new(&calibration, CloudConfig::default())
+            .expect("ok")
+            .build(&depth, &color)
+            .expect("ok");
+        (cloud, calibration)
+    }
+
+    #[test]
+    fn projecting_onto_the_depth_camera_reproduces_the_grid() {
+        let (cloud, calibration) = scene();
+        let image = project_cloud(
+            &cloud,
+            &calibration.depth_camera,
+            &Isometry3::identity(),
+            &ProjectionConfig {
+                splat: Splat::Radius(0),
+                ..ProjectionConfig::default()
+            },
+        )
+        .expect("valid camera");
+        assert_eq!(image.point_index(100, 50), Some(50 * 512 + 100));
+        assert_eq!(image.covered_pixels(), 512 * 424);
+    }
+
+    #[test]
+    fn auto_splat_fills_a_magnified_view() {
+        let (cloud, calibration) = scene();
+        let t = calibration.depth_to_color().expect("ok").expect("rigid");
+        let image = project_cloud(
+            &cloud,
+            &calibration.color_camera,
+            &t,
+            &ProjectionConfig::default(),
+        )
+        .expect("valid");
+        let sparse = project_cloud(
+            &cloud,
+            &calibration.color_camera,
+            &t,
+            &ProjectionConfig {
+                splat: Splat::Radius(0),
+                ..ProjectionConfig::default()
+            },
+        )
+        .expect("valid");
+        // A region of the wall (away from the patch and its shadow) is fully covered with auto
+        // splats only.
+        let covered = |img: &ProjectionImage| {
+            (200..300)
+                .flat_map(|v| (300..400).map(move |u| (u, v)))
+                .filter(|&(u, v)| img.point_index(u, v).is_some())
+                .count()
+        };
+        assert_eq!(covered(&image), 100 * 100);
+        assert!(covered(&sparse) < 100 * 100 / 4);
+    }
+
+    #[test]
+    fn lift_stays_on_the_near_surface_at_an_edge() {
+        let (cloud, calibration) = scene();
+        let image = project_cloud(
+            &cloud,
+            &calibration.depth_camera,
+            &Isometry3::identity(),
+            &ProjectionConfig::default(),
+        )
+        .expect("valid");
+        // On the patch's edge column: half the neighbourhood is wall at 2 m.
+        let p = image
+            .lift(&cloud, &Point2::new(230.2, 200.0), &LiftConfig::default())
+            .expect("near points");
+        assert_relative_eq!(p.z, 1.0, epsilon = 1e-9);
+        let q = image
+            .lift(&cloud, &Point2::new(229.4, 200.0), &LiftConfig::default())
+            .expect("near points");
+        assert_relative_eq!(q.z, 2.0, epsilon = 1e-9);
+        // Off the image or not finite: nothing.
+        assert!(
+            image
+                .lift(&cloud, &Point2::new(-10.0, 5.0), &LiftConfig::default())
+                .is_none()
+        );
+        assert!(
+            image
+                .lift(&cloud, &Point2::new(f64::NAN, 5.0), &LiftConfig::default())
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn lift_of_a_pixel_centre_returns_that_point_on_a_plane() {
+        let (cloud, calibration) = scene();
+        let image = project_cloud(
+            &cloud,
+            &calibration.depth_camera,
+            &Isometry3::identity(),
+            &ProjectionConfig::default(),
+        )
+        .expect("valid");
+        let p = image
+            .lift(&cloud, &Point2::new(100.0, 300.0), &LiftConfig::default())
+            .expect("wall");
+        let truth = cloud.get(100, 300).expect("valid").position_m;
+        // The median of a symmetric neighbourhood on a plane is the centre point, up to the
+        // asymmetry that lens distortion gives the neighbourhood (well under a millimetre).
+        assert_relative_eq!(p, truth, epsilon = 1e-3);
+    }
+}

@@ -1,0 +1,546 @@
+//! Recordings: a directory of timestamped colour + depth frames with a calibration, read lazily
+//! (one frame in memory at a time) and written in our native layout.
+//!
+//! Layouts (see `docs/recording-format.md`):
+//! - **native**: `calibration.json`, `frames.csv` (`frame,timestamp_s,color,depth`), colour
+//!   PNG/JPEG files and 16-bit depth PNG (or PGM) files in the calibration's depth unit;
+//! - **TUM RGB-D**: `rgb.txt` and `depth.txt` (`timestamp filename` lines), depth in 1/5000 m,
+//!   colour and depth associated by nearest timestamp as TUM's `associate.py` does; the
+//!   calibration is `calibration.json` when present, else TUM's documented defaults.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+
+use crate::calibration::Calibration;
+use crate::depth::{DepthImage, read_color_image, read_depth_image, write_depth_png};
+use crate::error::{KinectError, Result};
+
+/// Calibration file of a native recording (and optional in a TUM folder).
+pub const CALIBRATION_FILE: &str = "calibration.json";
+/// Frame index of a native recording.
+pub const FRAMES_FILE: &str = "frames.csv";
+/// Header line of `frames.csv`.
+pub const FRAMES_HEADER: &str = "frame,timestamp_s,color,depth";
+/// Largest colour-to-depth time difference accepted when associating TUM frames: 0.02 s, the
+/// default `max_difference` of the TUM benchmark's `associate.py`.
+pub const TUM_MAX_DIFFERENCE_S: f64 = 0.02;
+
+/// Which layout a recording directory has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layout {
+    /// Our native layout.
+    Native,
+    /// TUM RGB-D benchmark layout.
+    Tum,
+}
+
+/// Where one frame's files are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameEntry {
+    /// Time of the frame in seconds (the depth image's timestamp).
+    pub timestamp_s: f64,
+    /// Time of the colour image in seconds (equal to `timestamp_s` in native recordings).
+    pub color_timestamp_s: f64,
+    /// The colour image file.
+    pub color_path: PathBuf,
+    /// The depth image file.
+    pub depth_path: PathBuf,
+}
+
+/// One frame, loaded.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// Position in the recording.
+    pub index: usize,
+    /// Time in seconds.
+    pub timestamp_s: f64,
+    /// Colour image.
+    pub color: RgbImage,
+    /// Depth image (raw units of the calibration).
+    pub depth: DepthImage,
+}
+
+/// A recording directory, opened: the calibration and the frame list are read; images are
+/// loaded only when a frame is asked for.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    dir: PathBuf,
+    layout: Layout,
+    calibration: Calibration,
+    entries: Vec<FrameEntry>,
+}
+
+impl Recording {
+    /// Open a recording, detecting its layout (`frames.csv` → native, `rgb.txt` + `depth.txt`
+    /// → TUM).
+    ///
+    /// # Errors
+    /// [`KinectError::UnknownLayout`] when neither layout is found; otherwise the errors of
+    /// reading the calibration and the frame list.
+    pub fn open(dir: &Path) -> Result<Self> {
+        Self::open_with(dir, None)
+    }
+
+    /// Open a recording with a given calibration (overrides the one in the directory).
+    ///
+    /// # Errors
+    /// As [`Recording::open`], and [`KinectError::InvalidParameter`] for an invalid
+    /// calibration.
+    pub fn open_with_calibration(dir: &Path, calibration: Calibration) -> Result<Self> {
+        calibration.validate()?;
+        Self::open_with(dir, Some(calibration))
+    }
+
+    fn open_with(dir: &Path, calibration: Option<Calibration>) -> Result<Self> {
+        if !dir.is_dir() {
+            return Err(KinectError::io(
+                dir,
+                std::io::Error::new(std::io::ErrorKind::NotFound, "no such directory"),
+            ));
+        }
+        let calibration_path = dir.join(CALIBRATION_FILE);
+        let (layout, entries) = if dir.join(FRAMES_FILE).is_file() {
+            (Layout::Native, read_frames_csv(dir)?)
+        } else if dir.join("rgb.txt").is_file() && dir.join("depth.txt").is_file() {
+            (Layout::Tum, read_tum(dir)?)
+        } else {
+            return Err(KinectError::UnknownLayout {
+                path: dir.to_path_buf(),
+                what: format!("no {FRAMES_FILE} (native) and no rgb.txt + depth.txt (TUM)"),
+            });
+        };
+        let calibration = match (calibration, layout) {
+            (Some(c), _) => c,
+            (None, Layout::Native) => Calibration::read_json(&calibration_path)?,
+            (None, Layout::Tum) if calibration_path.is_file() => {
+                Calibration::read_json(&calibration_path)?
+            }
+            (None, Layout::Tum) => Calibration::tum_default(),
+        };
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            layout,
+            calibration,
+            entries,
+        })
+    }
+
+    /// The directory.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The detected layout.
+    pub fn layout(&self) -> Layout {
+        self.layout
+    }
+
+    /// The calibration in use.
+    pub fn calibration(&self) -> &Calibration {
+        &self.calibration
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// True when there are no frames.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// Where each frame's files are.
+    pub fn entries(&self) -> &[FrameEntry] {
+        &self.entries
+    }
+
+    /// Load frame `index`, checking both images against the calibration's camera sizes.
+    ///
+    /// # Errors
+    /// [`KinectError::FrameOutOfRange`]; the image readers' errors;
+    /// [`KinectError::SizeMismatch`] naming the file whose size is wrong.
+    pub fn frame(&self, index: usize) -> Result<Frame> {
+        let entry = self
+            .entries
+            .get(index)
+            .ok_or(KinectError::FrameOutOfRange {
+                path: self.dir.clone(),
+                index,
+                count: self.entries.len(),
+            })?;
+        let color = read_color_image(&entry.color_path)?;
+        let depth = read_depth_image(&entry.depth_path, self.calibration.depth_unit_m)?;
+        let check = |path: &Path, cam: &crate::CameraModel, w: u32, h: u32| {
+            if (cam.width, cam.height) == (w, h) {
+                Ok(())
+            } else {
+                Err(KinectError::SizeMismatch {
+                    what: format!("{} vs. the calibration", path.display()),
+                    expected_width: cam.width,
+                    expected_height: cam.height,
+                    found_width: w,
+                    found_height: h,
+                })
+            }
+        };
+        check(
+            &entry.color_path,
+            &self.calibration.color_camera,
+            color.width(),
+            color.height(),
+        )?;
+        check(
+            &entry.depth_path,
+            &self.calibration.depth_camera,
+            depth.width(),
+            depth.height(),
+        )?;
+        Ok(Frame {
+            index,
+            timestamp_s: entry.timestamp_s,
+            color,
+            depth,
+        })
+    }
+
+    /// All frames in order, loaded one at a time as the iterator advances.
+    pub fn frames(&self) -> impl Iterator<Item = Result<Frame>> + '_ {
+        (0..self.entries.len()).map(|i| self.frame(i))
+    }
+}
+
+fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|e| KinectError::io(path, e))
+}
+
+fn read_frames_csv(dir: &Path) -> Result<Vec<FrameEntry>> {
+    let path = dir.join(FRAMES_FILE);
+    let text = read_text(&path)?;
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, h)) if h.trim() == FRAMES_HEADER => {}
+        other => {
+            return Err(KinectError::format(
+                &path,
+                format!(
+                    "line 1 must be {FRAMES_HEADER:?}, found {:?}",
+                    other.map(|(_, l)| l).unwrap_or("")
+                ),
+            ));
+        }
+    }
+    let mut entries = Vec::new();
+    for (k, line) in lines {
+        let lineno = k + 1;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let [frame, t, color, depth] = fields.as_slice() else {
+            return Err(KinectError::format(
+                &path,
+                format!("line {lineno}: {} fields, expected 4", fields.len()),
+            ));
+        };
+        if frame.parse::<usize>().ok() != Some(entries.len()) {
+            return Err(KinectError::format(
+                &path,
+                format!("line {lineno}: frame {frame:?}, expected {}", entries.len()),
+            ));
+        }
+        let t = parse_time(t, &path, lineno)?;
+        if let Some(prev) = entries.last().map(|e: &FrameEntry| e.timestamp_s)
+            && t <= prev
+        {
+            return Err(KinectError::format(
+                &path,
+                format!("line {lineno}: timestamp {t} s is not after the previous {prev} s"),
+            ));
+        }
+        entries.push(FrameEntry {
+            timestamp_s: t,
+            color_timestamp_s: t,
+            color_path: dir.join(color),
+            depth_path: dir.join(depth),
+        });
+    }
+    Ok(entries)
+}
+
+fn parse_time(s: &str, path: &Path, lineno: usize) -> Result<f64> {
+    s.parse::<f64>()
+        .ok()
+        .filter(|t| t.is_finite())
+        .ok_or_else(|| {
+            KinectError::format(
+                path,
+                format!("line {lineno}: timestamp {s:?} is not a number"),
+            )
+        })
+}
+
+/// Read a TUM list file (`timestamp filename` per line, `#` comments).
+fn read_tum_list(dir: &Path, name: &str) -> Result<Vec<(f64, PathBuf)>> {
+    let path = dir.join(name);
+    let text = read_text(&path)?;
+    let mut out = Vec::new();
+    for (k, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let mut words = line.split_whitespace();
+        let (Some(t), Some(file)) = (words.next(), words.next()) else {
+            return Err(KinectError::format(
+                &path,
+                format!("line {}: expected `timestamp filename`", k + 1),
+            ));
+        };
+        out.push((parse_time(t, &path, k + 1)?, dir.join(file)));
+    }
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(out)
+}
+
+fn read_tum(dir: &Path) -> Result<Vec<FrameEntry>> {
+    let rgb = read_tum_list(dir, "rgb.txt")?;
+    let depth = read_tum_list(dir, "depth.txt")?;
+    let pairs = associate(&depth, &rgb, TUM_MAX_DIFFERENCE_S);
+    Ok(pairs
+        .into_iter()
+        .map(|(d, c)| FrameEntry {
+            timestamp_s: depth[d].0,
+            color_timestamp_s: rgb[c].0,
+            color_path: rgb[c].1.clone(),
+            depth_path: depth[d].1.clone(),
+        })
+        .collect())
+}
+
+/// Associate two sorted timestamp lists one-to-one: every pair closer than `max_difference_s`
+/// is a candidate, candidates are taken closest first, each item used once (TUM
+/// `associate.py`). Returns index pairs `(first, second)` sorted by the first list's time.
+pub fn associate<T, U>(
+    first: &[(f64, T)],
+    second: &[(f64, U)],
+    max_difference_s: f64,
+) -> Vec<(usize, usize)> {
+    let mut candidates = Vec::new();
+    for (i, (t, _)) in first.iter().enumerate() {
+        let start = second.partition_point(|(s, _)| *s < t - max_difference_s);
+        for (j, (s, _)) in second.iter().enumerate().skip(start) {
+            if *s > t + max_difference_s {
+                break;
+            }
+            if (s - t).abs() < max_difference_s {
+                candidates.push(((s - t).abs(), i, j));
+            }
+        }
+    }
+    candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut used_first = vec![false; first.len()];
+    let mut used_second = vec![false; second.len()];
+    let mut pairs = Vec::new();
+    for (_, i, j) in candidates {
+        if !used_first[i] && !used_second[j] {
+            used_first[i] = true;
+            used_second[j] = true;
+            pairs.push((i, j));
+        }
+    }
+    pairs.sort_unstable();
+    pairs
+}
+
+/// How the writer stores colour images.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ColorFormat {
+    /// Lossless PNG (the default).
+    #[default]
+    Png,
+    /// JPEG with a quality of 1..=100 (smaller, lossy; what the Kinect V2 itself delivers).
+    Jpeg {
+        /// JPEG quality, 1..=100.
+        quality: u8,
+    },
+}
+
+/// Writes a recording in the native layout, frame by frame. The frame list is flushed after
+/// every frame, so a recording cut short is still readable up to its last complete frame.
+pub struct RecordingWriter {
+    dir: PathBuf,
+    calibration: Calibration,
+    color_format: ColorFormat,
+    frames: BufWriter<File>,
+    count: usize,
+    last_timestamp_s: Option<f64>,
+}
+
+impl RecordingWriter {
+    /// Create the directory structure (`color/`, `depth/`), the calibration and the frame list.
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] for an invalid calibration or JPEG quality;
+    /// [`KinectError::Io`] when files cannot be created; a directory that already holds a
+    /// recording is not overwritten ([`KinectError::Io`] with kind `AlreadyExists`).
+    pub fn create(
+        dir: &Path,
+        calibration: &Calibration,
+        color_format: ColorFormat,
+    ) -> Result<Self> {
+        calibration.validate()?;
+        if let ColorFormat::Jpeg { quality } = color_format
+            && !(1..=100).contains(&quality)
+        {
+            return Err(KinectError::param(
+                "JPEG quality",
+                format!("{quality} is not in 1..=100"),
+            ));
+        }
+        let frames_path = dir.join(FRAMES_FILE);
+        if frames_path.exists() {
+            return Err(KinectError::io(
+                &frames_path,
+                std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    "a recording is already there",
+                ),
+            ));
+        }
+        for sub in ["color", "depth"] {
+            let p = dir.join(sub);
+            std::fs::create_dir_all(&p).map_err(|e| KinectError::io(&p, e))?;
+        }
+        calibration.write_json(&dir.join(CALIBRATION_FILE))?;
+        let file = File::create(&frames_path).map_err(|e| KinectError::io(&frames_path, e))?;
+        let mut frames = BufWriter::new(file);
+        writeln!(frames, "{FRAMES_HEADER}").map_err(|e| KinectError::io(&frames_path, e))?;
+        frames
+            .flush()
+            .map_err(|e| KinectError::io(&frames_path, e))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            calibration: calibration.clone(),
+            color_format,
+            frames,
+            count: 0,
+            last_timestamp_s: None,
+        })
+    }
+
+    /// Append one frame; returns its index.
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] for a timestamp that is not finite or not after the
+    /// previous one, or a depth image in another unit than the calibration's;
+    /// [`KinectError::SizeMismatch`] for images of the wrong size; I/O and codec errors.
+    pub fn write_frame(
+        &mut self,
+        timestamp_s: f64,
+        color: &RgbImage,
+        depth: &DepthImage,
+    ) -> Result<usize> {
+        if !timestamp_s.is_finite() || self.last_timestamp_s.is_some_and(|t| timestamp_s <= t) {
+            return Err(KinectError::param(
+                "timestamp_s",
+                format!(
+                    "{timestamp_s} s must be finite and after the previous frame's {:?} s",
+                    self.last_timestamp_s
+                ),
+            ));
+        }
+        if depth.unit_m() != self.calibration.depth_unit_m {
+            return Err(KinectError::param(
+                "depth unit",
+                format!(
+                    "{} m per unit, the calibration says {} m",
+                    depth.unit_m(),
+                    self.calibration.depth_unit_m
+                ),
+            ));
+        }
+        for (what, cam, w, h) in [
+            (
+                "colour frame",
+                &self.calibration.color_camera,
+                color.width(),
+                color.height(),
+            ),
+            (
+                "depth frame",
+                &self.calibration.depth_camera,
+                depth.width(),
+                depth.height(),
+            ),
+        ] {
+            if (cam.width, cam.height) != (w, h) {
+                return Err(KinectError::SizeMismatch {
+                    what: format!("{what} vs. the calibration"),
+                    expected_width: cam.width,
+                    expected_height: cam.height,
+                    found_width: w,
+                    found_height: h,
+                });
+            }
+        }
+        let index = self.count;
+        let color_name = match self.color_format {
+            ColorFormat::Png => format!("color/{index:06}.png"),
+            ColorFormat::Jpeg { .. } => format!("color/{index:06}.jpg"),
+        };
+        let depth_name = format!("depth/{index:06}.png");
+        let color_path = self.dir.join(&color_name);
+        match self.color_format {
+            ColorFormat::Png => color
+                .save_with_format(&color_path, image::ImageFormat::Png)
+                .map_err(|e| crate::depth::image_error(&color_path, e))?,
+            ColorFormat::Jpeg { quality } => {
+                let file =
+                    File::create(&color_path).map_err(|e| KinectError::io(&color_path, e))?;
+                let mut w = BufWriter::new(file);
+                image::codecs::jpeg::JpegEncoder::new_with_quality(&mut w, quality)
+                    .encode_image(color)
+                    .map_err(|e| crate::depth::image_error(&color_path, e))?;
+            }
+        }
+        write_depth_png(depth, &self.dir.join(&depth_name))?;
+        let frames_path = self.dir.join(FRAMES_FILE);
+        writeln!(
+            self.frames,
+            "{index},{timestamp_s},{color_name},{depth_name}"
+        )
+        .and_then(|()| self.frames.flush())
+        .map_err(|e| KinectError::io(&frames_path, e))?;
+        self.count += 1;
+        self.last_timestamp_s = Some(timestamp_s);
+        Ok(index)
+    }
+
+    /// Number of frames written.
+    pub fn len(&self) -> usize {
+        self.count
+    }
+
+    /// True when no frame was written yet.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn association_is_one_to_one_and_closest_first() {
+        let depth = [(1.000, ()), (1.033, ()), (1.066, ())];
+        let rgb = [(1.010, ()), (1.030, ()), (1.200, ())];
+        let pairs = associate(&depth, &rgb, TUM_MAX_DIFFERENCE_S);
+        // 1.033 takes 1.030 (0.003 s); 1.000 then takes 1.010; 1.066 has nothing within 0.02 s.
+        assert_eq!(pairs, vec![(0, 0), (1, 1)]);
+    }
+}

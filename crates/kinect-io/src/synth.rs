@@ -1,0 +1,861 @@
+//! Synthetic Kinect-like captures with ground truth: a scene of primitives (capsules for
+//! branches, spheres, discs for markers, a ground plane, sky) ray-cast through the calibrated
+//! depth and colour cameras, with the sensor's artefacts: depth noise growing with distance,
+//! flying pixels at depth edges, dropped pixels, the working range, colour noise. Seeded:
+//! the same scene, config and seed give the same frame bit for bit.
+//!
+//! Later stages test against it end to end: [`render`] returns the true 3D position of each
+//! marker and its true pixel in both cameras.
+
+use image::RgbImage;
+use nalgebra::{Isometry3, Point2, Point3, Translation3, Vector3};
+
+use crate::calibration::{Calibration, RegistrationModel, camera_to_world_z_up};
+use crate::camera::CameraModel;
+use crate::depth::DepthImage;
+use crate::error::{KinectError, Result};
+
+/// Kinect V2 working range, nearest depth (Microsoft Kinect for Windows v2 specification).
+pub const KINECT_V2_MIN_DEPTH_M: f64 = 0.5;
+/// Kinect V2 working range, furthest depth.
+pub const KINECT_V2_MAX_DEPTH_M: f64 = 4.5;
+/// Axial noise model of the Kinect V2 (Fankhauser et al. 2015, "Kinect v2 for mobile robot
+/// navigation: evaluation and modeling", ICAR; angle term omitted):
+/// sigma(z) = 1.5 - 0.5 z + 0.3 z² millimetres, z in metres.
+const NOISE_MM: [f64; 3] = [1.5, -0.5, 0.3];
+/// Depth jump between neighbouring pixels above which a pixel is at a depth edge (metres).
+const EDGE_JUMP_M: f64 = 0.05;
+/// Ambient share of the Lambert shading of the colour image.
+const AMBIENT: f64 = 0.35;
+
+/// A shape of the scene, in the world frame (metres, Z up).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Shape {
+    /// A cylinder with hemispherical ends around the segment `a`–`b` (a branch).
+    Capsule {
+        /// One end of the axis.
+        a: Point3<f64>,
+        /// The other end of the axis.
+        b: Point3<f64>,
+        /// Radius in metres.
+        radius_m: f64,
+    },
+    /// A sphere.
+    Sphere {
+        /// Centre.
+        center: Point3<f64>,
+        /// Radius in metres.
+        radius_m: f64,
+    },
+    /// A flat disc, visible from both sides (a pasted marker).
+    Disc {
+        /// Centre.
+        center: Point3<f64>,
+        /// Normal (any length but zero).
+        normal: Vector3<f64>,
+        /// Radius in metres.
+        radius_m: f64,
+    },
+}
+
+/// A coloured shape.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Primitive {
+    /// Geometry.
+    pub shape: Shape,
+    /// Surface colour.
+    pub rgb: [u8; 3],
+}
+
+/// A marker: a disc whose true centre is reported by [`render`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Marker {
+    /// Name (the paper's A..J).
+    pub id: String,
+    /// Centre in the world frame.
+    pub center_m: Point3<f64>,
+    /// Normal of the disc (facing the camera).
+    pub normal: Vector3<f64>,
+    /// Radius in metres (the paper's markers are about 3 cm wide).
+    pub radius_m: f64,
+    /// Colour.
+    pub rgb: [u8; 3],
+}
+
+/// A scene in the world frame (Z up).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// Shapes.
+    pub primitives: Vec<Primitive>,
+    /// Markers.
+    pub markers: Vec<Marker>,
+    /// Ground plane `z = height`, with its colour, if any.
+    pub ground: Option<(f64, [u8; 3])>,
+    /// Colour where a ray hits nothing (depth: no measurement).
+    pub sky_rgb: [u8; 3],
+    /// Direction towards the light (world frame).
+    pub light_direction: Vector3<f64>,
+}
+
+/// Sensor artefacts. [`SensorNoise::kinect_v2`] is the default; [`SensorNoise::none`] gives
+/// exact depth (quantised to the depth unit) and exact colour.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorNoise {
+    /// Multiplies the Kinect V2 axial noise sigma (1 = Fankhauser et al. 2015; 0 = none).
+    pub depth_noise_scale: f64,
+    /// Probability that a pixel at a depth edge becomes a flying pixel (a depth between the
+    /// two surfaces). Default 0.5.
+    pub flying_pixel_probability: f64,
+    /// Probability that any valid pixel is dropped (reads 0). Default 0.002.
+    pub dropout_probability: f64,
+    /// Standard deviation of the colour noise per channel, in 8-bit levels. Default 2.
+    pub color_noise_sigma: f64,
+    /// Nearest measurable depth (default 0.5 m).
+    pub min_depth_m: f64,
+    /// Furthest measurable depth (default 4.5 m).
+    pub max_depth_m: f64,
+}
+
+impl SensorNoise {
+    /// Kinect V2-like artefacts (the defaults documented field by field).
+    pub fn kinect_v2() -> Self {
+        Self {
+            depth_noise_scale: 1.0,
+            flying_pixel_probability: 0.5,
+            dropout_probability: 0.002,
+            color_noise_sigma: 2.0,
+            min_depth_m: KINECT_V2_MIN_DEPTH_M,
+            max_depth_m: KINECT_V2_MAX_DEPTH_M,
+        }
+    }
+
+    /// No artefacts (range limits kept).
+    pub fn none() -> Self {
+        Self {
+            depth_noise_scale: 0.0,
+            flying_pixel_probability: 0.0,
+            dropout_probability: 0.0,
+            color_noise_sigma: 0.0,
+            ..Self::kinect_v2()
+        }
+    }
+
+    /// Check the ranges.
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] for a probability outside 0..=1, a negative scale or
+    /// sigma, or an empty depth range.
+    pub fn validate(&self) -> Result<()> {
+        for (name, p) in [
+            ("flying_pixel_probability", self.flying_pixel_probability),
+            ("dropout_probability", self.dropout_probability),
+        ] {
+            if !(0.0..=1.0).contains(&p) {
+                return Err(KinectError::param(name, format!("{p} is not in 0..=1")));
+            }
+        }
+        for (name, v) in [
+            ("depth_noise_scale", self.depth_noise_scale),
+            ("color_noise_sigma", self.color_noise_sigma),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(KinectError::param(
+                    name,
+                    format!("{v} must be finite and >= 0"),
+                ));
+            }
+        }
+        if !(self.min_depth_m >= 0.0 && self.max_depth_m > self.min_depth_m) {
+            return Err(KinectError::param(
+                "depth range",
+                format!("{} m .. {} m is empty", self.min_depth_m, self.max_depth_m),
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl Default for SensorNoise {
+    fn default() -> Self {
+        Self::kinect_v2()
+    }
+}
+
+/// What to render with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SynthConfig {
+    /// Cameras and registration (rigid or already registered; not libfreenect2's model).
+    pub calibration: Calibration,
+    /// Transform from the world frame to the depth camera's frame.
+    pub world_to_depth: Isometry3<f64>,
+    /// Sensor artefacts.
+    pub noise: SensorNoise,
+    /// Random seed.
+    pub seed: u64,
+}
+
+impl SynthConfig {
+    /// A Kinect V2 ([`Calibration::kinect_v2`]) level at `camera_height_m`, `distance_m` in
+    /// front of the world origin (on the -y side, looking along +y), Kinect V2 noise.
+    pub fn kinect_v2(distance_m: f64, camera_height_m: f64, seed: u64) -> Self {
+        let camera_to_world =
+            Translation3::new(0.0, -distance_m, 0.0) * camera_to_world_z_up(camera_height_m, 0.0);
+        Self {
+            calibration: Calibration::kinect_v2(),
+            world_to_depth: camera_to_world.inverse(),
+            noise: SensorNoise::kinect_v2(),
+            seed,
+        }
+    }
+}
+
+/// Ground truth of a marker in a rendered frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerTruth {
+    /// Marker name.
+    pub id: String,
+    /// Centre in the world frame.
+    pub world_m: Point3<f64>,
+    /// Centre in the depth camera frame (the frame of the clouds built from this frame).
+    pub depth_camera_m: Point3<f64>,
+    /// Centre's sub-pixel position on the depth image (may lie off the image).
+    pub depth_pixel: Option<Point2<f64>>,
+    /// Centre's sub-pixel position on the colour image (may lie off the image).
+    pub color_pixel: Option<Point2<f64>>,
+    /// True when the depth camera sees the marker's centre (not occluded, on the image).
+    pub visible: bool,
+}
+
+/// A rendered frame.
+#[derive(Debug, Clone)]
+pub struct SynthFrame {
+    /// Depth image in the calibration's unit.
+    pub depth: DepthImage,
+    /// Colour image.
+    pub color: RgbImage,
+    /// Truth per marker, in the scene's order.
+    pub markers: Vec<MarkerTruth>,
+}
+
+/// SplitMix64 (Steele, Lea, Flood 2014): small, fast, and stable across versions of anything,
+/// so a seed gives the same frame forever.
+#[derive(Debug, Clone)]
+pub(crate) struct SplitMix64(u64);
+
+impl SplitMix64 {
+    pub(crate) fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+
+    pub(crate) fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    pub(crate) fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    /// Standard normal (Box–Muller).
+    pub(crate) fn normal(&mut self) -> f64 {
+        let u1 = 1.0 - self.uniform();
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+}
+
+/// A shape moved into a camera frame, with a bounding sphere for quick rejection.
+#[derive(Debug, Clone, Copy)]
+enum Local {
+    Capsule {
+        a: Vector3<f64>,
+        b: Vector3<f64>,
+        r: f64,
+    },
+    Sphere {
+        c: Vector3<f64>,
+        r: f64,
+    },
+    Disc {
+        c: Vector3<f64>,
+        n: Vector3<f64>,
+        r: f64,
+    },
+    Plane {
+        p: Vector3<f64>,
+        n: Vector3<f64>,
+    },
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Object {
+    shape: Local,
+    rgb: [u8; 3],
+    bound: Bound,
+    marker: bool,
+}
+
+/// A bounding sphere: centre and radius.
+type Bound = Option<(Vector3<f64>, f64)>;
+
+fn to_local(shape: &Shape, t: &Isometry3<f64>) -> Result<(Local, Bound)> {
+    let finite = |v: f64, name: &'static str| {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(KinectError::param(
+                name,
+                format!("{v} m must be finite and positive"),
+            ))
+        }
+    };
+    Ok(match *shape {
+        Shape::Capsule { a, b, radius_m } => {
+            let r = finite(radius_m, "capsule radius")?;
+            let (a, b) = ((t * a).coords, (t * b).coords);
+            (
+                Local::Capsule { a, b, r },
+                Some(((a + b) * 0.5, (b - a).norm() * 0.5 + r)),
+            )
+        }
+        Shape::Sphere { center, radius_m } => {
+            let r = finite(radius_m, "sphere radius")?;
+            let c = (t * center).coords;
+            (Local::Sphere { c, r }, Some((c, r)))
+        }
+        Shape::Disc {
+            center,
+            normal,
+            radius_m,
+        } => {
+            let r = finite(radius_m, "disc radius")?;
+            let n = t * normal;
+            let norm = n.norm();
+            if !(norm.is_finite() && norm > 0.0) {
+                return Err(KinectError::param(
+                    "disc normal",
+                    "must be a non-zero vector",
+                ));
+            }
+            let c = (t * center).coords;
+            (Local::Disc { c, n: n / norm, r }, Some((c, r)))
+        }
+    })
+}
+
+/// Distance along the unit ray `d` from the origin to the first hit, and the surface normal.
+fn intersect(shape: &Local, d: &Vector3<f64>) -> Option<(f64, Vector3<f64>)> {
+    match *shape {
+        Local::Sphere { c, r } => {
+            let b = d.dot(&c);
+            let h = b * b - (c.norm_squared() - r * r);
+            if h < 0.0 {
+                return None;
+            }
+            let t = b - h.sqrt();
+            (t > 0.0).then(|| (t, (d * t - c) / r))
+        }
+        Local::Capsule { a, b, r } => {
+            // Cylinder body then end caps (a standard capsule-ray intersection).
+            let ba = b - a;
+            let oa = -a;
+            let baba = ba.dot(&ba);
+            let bard = ba.dot(d);
+            let baoa = ba.dot(&oa);
+            let rdoa = d.dot(&oa);
+            let oaoa = oa.dot(&oa);
+            let qa = baba - bard * bard;
+            let qb = baba * rdoa - baoa * bard;
+            let qc = baba * oaoa - baoa * baoa - r * r * baba;
+            let h = qb * qb - qa * qc;
+            if h < 0.0 {
+                return None;
+            }
+            let mut t = if qa.abs() > 1e-12 {
+                (-qb - h.sqrt()) / qa
+            } else {
+                -1.0
+            };
+            let y = baoa + t * bard;
+            if !(t > 0.0 && y > 0.0 && y < baba) {
+                let oc = if y <= 0.0 { oa } else { -b };
+                let cb = d.dot(&oc);
+                let cc = oc.dot(&oc) - r * r;
+                let ch = cb * cb - cc;
+                if ch <= 0.0 {
+                    return None;
+                }
+                t = -cb - ch.sqrt();
+                if t <= 0.0 {
+                    return None;
+                }
+            }
+            let p = d * t;
+            let s = ((p - a).dot(&ba) / baba).clamp(0.0, 1.0);
+            Some((t, (p - a - ba * s) / r))
+        }
+        Local::Disc { c, n, r } => {
+            let dn = d.dot(&n);
+            if dn.abs() < 1e-12 {
+                return None;
+            }
+            let t = c.dot(&n) / dn;
+            (t > 0.0 && (d * t - c).norm_squared() <= r * r).then_some((t, n))
+        }
+        Local::Plane { p, n } => {
+            let dn = d.dot(&n);
+            if dn.abs() < 1e-12 {
+                return None;
+            }
+            let t = p.dot(&n) / dn;
+            (t > 0.0).then_some((t, n))
+        }
+    }
+}
+
+/// Cast one ray: nearest hit (depth along the optical axis, index of the object, normal).
+fn cast(objects: &[Object], d: &Vector3<f64>) -> Option<(f64, usize, Vector3<f64>)> {
+    let mut best: Option<(f64, usize, Vector3<f64>)> = None;
+    for (k, o) in objects.iter().enumerate() {
+        if let Some((c, r)) = o.bound {
+            let tc = d.dot(&c);
+            if c.norm_squared() - tc * tc > r * r || tc < -r {
+                continue;
+            }
+        }
+        if let Some((t, n)) = intersect(&o.shape, d)
+            && best.is_none_or(|b| t < b.0)
+        {
+            best = Some((t, k, n));
+        }
+    }
+    best
+}
+
+fn scene_objects(scene: &Scene, world_to_camera: &Isometry3<f64>) -> Result<Vec<Object>> {
+    let mut objects = Vec::with_capacity(scene.primitives.len() + scene.markers.len() + 1);
+    for p in &scene.primitives {
+        let (shape, bound) = to_local(&p.shape, world_to_camera)?;
+        objects.push(Object {
+            shape,
+            rgb: p.rgb,
+            bound,
+            marker: false,
+        });
+    }
+    for m in &scene.markers {
+        let (shape, bound) = to_local(
+            &Shape::Disc {
+                center: m.center_m,
+                normal: m.normal,
+                radius_m: m.radius_m,
+            },
+            world_to_camera,
+        )?;
+        objects.push(Object {
+            shape,
+            rgb: m.rgb,
+            bound,
+            marker: true,
+        });
+    }
+    if let Some((height_m, rgb)) = scene.ground {
+        if !height_m.is_finite() {
+            return Err(KinectError::param("ground height", "is not finite"));
+        }
+        objects.push(Object {
+            shape: Local::Plane {
+                p: (world_to_camera * Point3::new(0.0, 0.0, height_m)).coords,
+                n: world_to_camera * Vector3::z(),
+            },
+            rgb,
+            bound: None,
+            marker: false,
+        });
+    }
+    Ok(objects)
+}
+
+/// Ray-cast one camera: per pixel the depth along the optical axis (`None` for no hit) and,
+/// optionally, the shaded colour.
+fn raycast(
+    camera: &CameraModel,
+    objects: &[Object],
+    light_camera: &Vector3<f64>,
+    sky: [u8; 3],
+    mut color: Option<&mut RgbImage>,
+) -> Vec<Option<f64>> {
+    let mut depth = Vec::with_capacity(camera.pixel_count());
+    for v in 0..camera.height {
+        for u in 0..camera.width {
+            let Some(ray) = camera.unproject_normalized(&Point2::new(f64::from(u), f64::from(v)))
+            else {
+                depth.push(None);
+                continue;
+            };
+            let d = Vector3::new(ray.x, ray.y, 1.0);
+            let len = d.norm();
+            let d = d / len;
+            let hit = cast(objects, &d);
+            depth.push(hit.map(|(t, _, _)| t / len));
+            if let Some(img) = color.as_deref_mut() {
+                let rgb = match hit {
+                    None => sky,
+                    Some((_, k, n)) => {
+                        let n = if n.dot(&d) > 0.0 { -n } else { n };
+                        let lambert = n.dot(light_camera).max(0.0);
+                        let shade = if objects[k].marker {
+                            0.8 + 0.2 * lambert
+                        } else {
+                            AMBIENT + (1.0 - AMBIENT) * lambert
+                        };
+                        objects[k]
+                            .rgb
+                            .map(|c| (f64::from(c) * shade).round().clamp(0.0, 255.0) as u8)
+                    }
+                };
+                img.put_pixel(u, v, image::Rgb(rgb));
+            }
+        }
+    }
+    depth
+}
+
+/// Render one frame of `scene` as the configured camera sees it.
+///
+/// # Errors
+/// [`KinectError::InvalidParameter`] for an invalid calibration, noise config, or shape
+/// (non-positive radius, zero normal), or a libfreenect2 calibration (not rendered: give the
+/// equivalent rigid calibration).
+pub fn render(scene: &Scene, config: &SynthConfig) -> Result<SynthFrame> {
+    let cal = &config.calibration;
+    cal.validate()?;
+    config.noise.validate()?;
+    let depth_to_color = match cal.registration {
+        RegistrationModel::Freenect2 { .. } => {
+            return Err(KinectError::param(
+                "synth calibration",
+                "libfreenect2's polynomial model cannot be ray-cast; use a rigid calibration",
+            ));
+        }
+        _ => cal.depth_to_color()?.unwrap_or_else(Isometry3::identity),
+    };
+    let light = scene
+        .light_direction
+        .try_normalize(1e-12)
+        .unwrap_or_else(Vector3::z);
+    let world_to_color = depth_to_color * config.world_to_depth;
+    let mut rng = SplitMix64::new(config.seed);
+
+    // Depth camera.
+    let dcam = cal.depth_camera;
+    let depth_objects = scene_objects(scene, &config.world_to_depth)?;
+    let truth_z = raycast(
+        &dcam,
+        &depth_objects,
+        &(config.world_to_depth * light),
+        scene.sky_rgb,
+        None,
+    );
+    let noise = &config.noise;
+    let (w, h) = (dcam.width as usize, dcam.height as usize);
+    let mut z_m: Vec<f64> = truth_z.iter().map(|z| z.unwrap_or(f64::NAN)).collect();
+    if noise.flying_pixel_probability > 0.0 {
+        let original = z_m.clone();
+        for v in 0..h {
+            for u in 0..w {
+                let i = v * w + u;
+                let z = original[i];
+                if z.is_nan() {
+                    continue;
+                }
+                let mut far = None::<f64>;
+                for (du, dv) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                    let (nu, nv) = (u as i64 + du, v as i64 + dv);
+                    if nu < 0 || nv < 0 || nu >= w as i64 || nv >= h as i64 {
+                        continue;
+                    }
+                    let zn = original[nv as usize * w + nu as usize];
+                    let zn = if zn.is_nan() { noise.max_depth_m } else { zn };
+                    if (zn - z).abs() > EDGE_JUMP_M
+                        && far.is_none_or(|f| (zn - z).abs() > (f - z).abs())
+                    {
+                        far = Some(zn);
+                    }
+                }
+                if let Some(zn) = far
+                    && rng.uniform() < noise.flying_pixel_probability
+                {
+                    let mix = 0.2 + 0.6 * rng.uniform();
+                    z_m[i] = z + mix * (zn - z);
+                }
+            }
+        }
+    }
+    let unit = cal.depth_unit_m;
+    let mut raw = vec![0u16; w * h];
+    for (i, z) in z_m.iter().enumerate() {
+        if z.is_nan() {
+            continue;
+        }
+        let sigma_mm = NOISE_MM[0] + NOISE_MM[1] * z + NOISE_MM[2] * z * z;
+        let noisy = z + noise.depth_noise_scale * sigma_mm * 1e-3 * rng.normal();
+        if noise.dropout_probability > 0.0 && rng.uniform() < noise.dropout_probability {
+            continue;
+        }
+        if !(noisy >= noise.min_depth_m && noisy <= noise.max_depth_m) {
+            continue;
+        }
+        let value = ((noisy - cal.depth_offset_m) / unit).round();
+        if value >= 1.0 && value <= f64::from(u16::MAX) {
+            raw[i] = value as u16;
+        }
+    }
+    let depth = DepthImage::new(dcam.width, dcam.height, unit, raw)?;
+
+    // Colour camera.
+    let ccam = cal.color_camera;
+    let color_objects = scene_objects(scene, &world_to_color)?;
+    let mut color = RgbImage::new(ccam.width, ccam.height);
+    raycast(
+        &ccam,
+        &color_objects,
+        &(world_to_color * light),
+        scene.sky_rgb,
+        Some(&mut color),
+    );
+    if noise.color_noise_sigma > 0.0 {
+        for c in color.as_mut() {
+            let v = f64::from(*c) + noise.color_noise_sigma * rng.normal();
+            *c = v.round().clamp(0.0, 255.0) as u8;
+        }
+    }
+
+    // Truth.
+    let markers = scene
+        .markers
+        .iter()
+        .map(|m| {
+            let pd = config.world_to_depth * m.center_m;
+            let depth_pixel = dcam.project(&pd);
+            let color_pixel = ccam.project(&(depth_to_color * pd));
+            let visible = depth_pixel
+                .and_then(|px| dcam.pixel_at(&px))
+                .and_then(|(u, v)| truth_z[v as usize * w + u as usize])
+                .is_some_and(|z| (z - pd.z).abs() < 0.01);
+            MarkerTruth {
+                id: m.id.clone(),
+                world_m: m.center_m,
+                depth_camera_m: pd,
+                depth_pixel,
+                color_pixel,
+                visible,
+            }
+        })
+        .collect();
+    Ok(SynthFrame {
+        depth,
+        color,
+        markers,
+    })
+}
+
+/// Bark colour of the demo tree.
+const BARK_RGB: [u8; 3] = [112, 82, 58];
+/// Marker red of the demo tree (the paper's red markers).
+pub const MARKER_RGB: [u8; 3] = [215, 25, 30];
+/// Marker radius of the demo tree: the paper's markers are about 3 cm wide.
+pub const MARKER_RADIUS_M: f64 = 0.015;
+
+/// A small leafless tree (about 2 m tall) standing at the world origin on grass, with a red
+/// marker on the trunk and on every branch of the first two levels (ids `A`, `B`, ... in
+/// depth-first order), each facing a camera on the -y side. Branch angles vary with `seed`.
+pub fn demo_tree(seed: u64) -> Scene {
+    let mut rng = SplitMix64::new(seed ^ 0x7472_6565); // "tree"
+    let mut primitives = Vec::new();
+    let mut markers = Vec::new();
+    let trunk_top = Point3::new(0.0, 0.0, 1.0);
+    primitives.push(Primitive {
+        shape: Shape::Capsule {
+            a: Point3::new(0.0, 0.0, -0.05),
+            b: trunk_top,
+            radius_m: 0.04,
+        },
+        rgb: BARK_RGB,
+    });
+    add_marker(&mut markers, Point3::new(0.0, 0.0, 0.6), Vector3::z(), 0.04);
+    // (start, direction, length, radius, level)
+    let mut stack = vec![(trunk_top, Vector3::z(), 0.0_f64, 0.03_f64, 0usize)];
+    while let Some((start, dir, _, radius, level)) = stack.pop() {
+        if level >= 3 {
+            continue;
+        }
+        let children = if level == 0 { 3 } else { 2 };
+        for k in 0..children {
+            let spread = if level == 0 { 0.9 } else { 0.6 };
+            let side = if children == 3 {
+                k as f64 - 1.0
+            } else {
+                k as f64 * 2.0 - 1.0
+            };
+            let angle = side * spread + 0.15 * (rng.uniform() - 0.5);
+            // Branches fan out mostly in the x–z plane (facing the camera on -y), a little in y.
+            let depth_tilt = 0.25 * (rng.uniform() - 0.5);
+            let rot = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), angle)
+                * nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), depth_tilt);
+            let child_dir = (rot * dir).normalize();
+            let length = [0.55, 0.38, 0.24][level] * (0.9 + 0.2 * rng.uniform());
+            let child_radius = radius * 0.62;
+            let end = start + child_dir * length;
+            primitives.push(Primitive {
+                shape: Shape::Capsule {
+                    a: start,
+                    b: end,
+                    radius_m: child_radius,
+                },
+                rgb: BARK_RGB,
+            });
+            if level < 2 {
+                add_marker(
+                    &mut markers,
+                    start + child_dir * (length * 0.6),
+                    child_dir,
+                    child_radius,
+                );
+            }
+            stack.push((end, child_dir, length, child_radius, level + 1));
+        }
+    }
+    Scene {
+        primitives,
+        markers,
+        ground: Some((0.0, [86, 118, 62])),
+        sky_rgb: [172, 200, 232],
+        light_direction: Vector3::new(0.3, -0.6, 1.0),
+    }
+}
+
+/// A marker on the camera-facing (-y) side of a branch at `at` with axis `axis`.
+fn add_marker(markers: &mut Vec<Marker>, at: Point3<f64>, axis: Vector3<f64>, radius_m: f64) {
+    let toward = -Vector3::y();
+    let axis = axis.normalize();
+    let facing = (toward - axis * toward.dot(&axis))
+        .try_normalize(1e-9)
+        .unwrap_or(toward);
+    let id = marker_id(markers.len());
+    markers.push(Marker {
+        id,
+        center_m: at + facing * (radius_m + 0.002),
+        normal: facing,
+        radius_m: MARKER_RADIUS_M,
+        rgb: MARKER_RGB,
+    });
+}
+
+fn marker_id(k: usize) -> String {
+    let letters = b"ABCDEFGHIJKLMNOPQRSTUVWXYZ";
+    if k < letters.len() {
+        char::from(letters[k]).to_string()
+    } else {
+        format!("M{k}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small_config(seed: u64) -> SynthConfig {
+        let mut config = SynthConfig::kinect_v2(2.2, 1.1, seed);
+        // Quarter-size colour camera keeps unit tests fast.
+        config.calibration.color_camera =
+            config.calibration.color_camera.scaled(0.25).expect("valid");
+        config
+    }
+
+    #[test]
+    fn rendering_is_deterministic_per_seed() {
+        let scene = demo_tree(1);
+        let a = render(&scene, &small_config(5)).expect("valid");
+        let b = render(&scene, &small_config(5)).expect("valid");
+        let c = render(&scene, &small_config(6)).expect("valid");
+        assert_eq!(a.depth, b.depth);
+        assert_eq!(a.color, b.color);
+        assert_ne!(a.depth, c.depth);
+    }
+
+    #[test]
+    fn noise_free_depth_matches_the_marker_truth() {
+        let scene = demo_tree(1);
+        let mut config = small_config(1);
+        config.noise = SensorNoise::none();
+        let frame = render(&scene, &config).expect("valid");
+        let visible: Vec<_> = frame.markers.iter().filter(|m| m.visible).collect();
+        assert!(visible.len() >= 8, "{} markers visible", visible.len());
+        for m in visible {
+            let (u, v) = config
+                .calibration
+                .depth_camera
+                .pixel_at(&m.depth_pixel.expect("in front"))
+                .expect("on image");
+            let z = frame.depth.depth_m(u, v).expect("depth on a marker");
+            // Within the disc's tilt over half a pixel plus the 1 mm quantisation.
+            assert!(
+                (z - m.depth_camera_m.z).abs() < 0.004,
+                "{} {z} vs {}",
+                m.id,
+                m.depth_camera_m.z
+            );
+            // And the colour camera sees red there.
+            let cp = m.color_pixel.expect("in front");
+            let px = frame
+                .color
+                .get_pixel(cp.x.round() as u32, cp.y.round() as u32);
+            assert!(px.0[0] > 150 && px.0[1] < 60, "{} colour {:?}", m.id, px.0);
+        }
+    }
+
+    #[test]
+    fn sky_has_no_depth_and_range_is_enforced() {
+        let scene = demo_tree(1);
+        let frame = render(&scene, &small_config(2)).expect("valid");
+        // The top row looks at the sky.
+        assert_eq!(frame.depth.get(5, 0), Some(0));
+        assert!(
+            frame
+                .depth
+                .values()
+                .iter()
+                .all(|&d| d == 0 || (500..=4500).contains(&d))
+        );
+    }
+
+    #[test]
+    fn bad_shapes_are_errors() {
+        let mut scene = demo_tree(1);
+        scene.primitives.push(Primitive {
+            shape: Shape::Sphere {
+                center: Point3::origin(),
+                radius_m: -1.0,
+            },
+            rgb: [0, 0, 0],
+        });
+        assert!(render(&scene, &small_config(1)).is_err());
+    }
+
+    #[test]
+    fn splitmix_normal_has_unit_variance() {
+        let mut rng = SplitMix64::new(42);
+        let n = 20_000;
+        let samples: Vec<f64> = (0..n).map(|_| rng.normal()).collect();
+        let mean = samples.iter().sum::<f64>() / n as f64;
+        let var = samples.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64;
+        // 5 standard errors of the mean and of the variance.
+        assert!(mean.abs() < 5.0 / (n as f64).sqrt(), "{mean}");
+        assert!((var - 1.0).abs() < 5.0 * (2.0 / n as f64).sqrt(), "{var}");
+    }
+}
