@@ -1,1 +1,127 @@
-fn main() {}
+//! kinect-io speed on realistic sizes: a Kinect V2 frame (512x424 depth, 1920x1080 colour) to
+//! an organized textured cloud (rigid and libfreenect2 registration), to projection images on
+//! the depth and colour planes, and lifting markers. Figures: `docs/benchmarks.md`.
+
+// A bench that cannot set up its data has nothing to measure: failing loudly is right here.
+#![allow(clippy::expect_used)]
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use treemocap::kinect_io::synth::{self, SynthConfig};
+use treemocap::kinect_io::{
+    Calibration, CloudBuilder, CloudConfig, Freenect2ColorParams, Freenect2IrParams, LiftConfig,
+    ProjectionConfig, project_cloud,
+};
+use treemocap::nalgebra::Isometry3;
+
+fn kinect_io(c: &mut Criterion) {
+    let config = SynthConfig::kinect_v2(2.2, 1.1, 7);
+    let frame = synth::render(&synth::demo_tree(7), &config).expect("demo scene renders");
+    let calibration = config.calibration.clone();
+    let mut group = c.benchmark_group("kinect_io");
+
+    let mut builder = CloudBuilder::new(&calibration, CloudConfig::default()).expect("valid");
+    let mut cloud = builder
+        .build(&frame.depth, &frame.color)
+        .expect("valid frame");
+    group.bench_function("cloud_rigid_registration_512x424", |b| {
+        b.iter(|| {
+            builder
+                .build_into(black_box(&frame.depth), black_box(&frame.color), &mut cloud)
+                .expect("valid frame")
+        })
+    });
+
+    let mut plain = CloudBuilder::new(
+        &calibration,
+        CloudConfig {
+            occlusion_filter: None,
+            ..CloudConfig::default()
+        },
+    )
+    .expect("valid");
+    group.bench_function("cloud_rigid_registration_no_filter_512x424", |b| {
+        b.iter(|| {
+            plain
+                .build_into(black_box(&frame.depth), black_box(&frame.color), &mut cloud)
+                .expect("valid frame")
+        })
+    });
+
+    let ir = Freenect2IrParams {
+        fx: 365.5,
+        fy: 365.5,
+        cx: 256.0,
+        cy: 207.0,
+        k1: 0.09,
+        k2: -0.27,
+        k3: 0.09,
+        p1: 0.0,
+        p2: 0.0,
+    };
+    let color = Freenect2ColorParams::from_pinhole_baseline(&ir, 1081.37, 959.5, 539.5, 52.0);
+    let f2 = Calibration::freenect2(ir, color);
+    let mut f2_builder = CloudBuilder::new(&f2, CloudConfig::default()).expect("valid");
+    let mut f2_cloud = f2_builder
+        .build(&frame.depth, &frame.color)
+        .expect("valid frame");
+    group.bench_function("cloud_freenect2_registration_512x424", |b| {
+        b.iter(|| {
+            f2_builder
+                .build_into(
+                    black_box(&frame.depth),
+                    black_box(&frame.color),
+                    &mut f2_cloud,
+                )
+                .expect("valid frame")
+        })
+    });
+
+    let proj_config = ProjectionConfig::default();
+    let mut on_depth = project_cloud(
+        &cloud,
+        &calibration.depth_camera,
+        &Isometry3::identity(),
+        &proj_config,
+    )
+    .expect("valid camera");
+    group.bench_function("projection_depth_plane_512x424", |b| {
+        b.iter(|| {
+            on_depth
+                .update(black_box(&cloud), &proj_config)
+                .expect("small cloud")
+        })
+    });
+
+    let depth_to_color = calibration.depth_to_color().expect("valid").expect("rigid");
+    let mut on_color = project_cloud(
+        &cloud,
+        &calibration.color_camera,
+        &depth_to_color,
+        &proj_config,
+    )
+    .expect("valid camera");
+    group.bench_function("projection_color_plane_1920x1080", |b| {
+        b.iter(|| {
+            on_color
+                .update(black_box(&cloud), &proj_config)
+                .expect("small cloud")
+        })
+    });
+
+    let pixels: Vec<_> = frame.markers.iter().filter_map(|m| m.color_pixel).collect();
+    let lift = LiftConfig::default();
+    let mut scratch = Vec::new();
+    group.bench_function("lift_10_markers", |b| {
+        b.iter(|| {
+            for p in &pixels {
+                black_box(on_color.lift_with(&cloud, p, &lift, &mut scratch));
+            }
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, kinect_io);
+criterion_main!(benches);

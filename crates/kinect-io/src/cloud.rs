@@ -223,7 +223,12 @@ impl CloudConfig {
 enum Engine {
     /// Rigid or already registered: per-pixel undistorted rays and the transform.
     Rays {
-        rays: Vec<Option<[f64; 2]>>,
+        /// Undistorted normalised ray per depth pixel; NaN where the distortion cannot be
+        /// inverted.
+        rays: Vec<[f64; 2]>,
+        /// Occlusion-map cells are `2^filter_shift` colour pixels wide: the spacing of depth
+        /// samples on the colour image rounded down to a power of two (2 for a Kinect V2).
+        filter_shift: u32,
         depth_to_color: Option<Isometry3<f64>>,
     },
     Freenect2 {
@@ -242,12 +247,82 @@ pub struct CloudBuilder {
     config: CloudConfig,
     engine: Engine,
     /// Nearest depth per colour pixel (occlusion filter), reused between frames.
-    filter_map: Vec<f32>,
-    /// Colour pixel of each depth pixel (flat index), reused between frames.
+    filter_map: MinDepthMap,
+    /// Colour pixel (flat index) of each depth pixel in `candidates`, reused between frames.
     color_index: Vec<u32>,
+    /// Depth pixels whose point projects onto the colour image, reused between frames.
+    candidates: Vec<u32>,
+    /// Occlusion-map cell and quantised colour-camera depth of each point, reused.
+    color_cell: Vec<(u32, u32, u32)>,
 }
 
-const NO_COLOR: u32 = u32::MAX;
+/// Depth resolution of the occlusion filter's map: 0.1 mm (24 bits then reach 1.6 km), far
+/// below the filter's 1 % tolerance.
+const FILTER_DEPTH_QUANTUM_M: f64 = 1e-4;
+const FILTER_DEPTH_BITS: u32 = 24;
+
+/// A minimum-depth map over the colour image, in cells of `2^shift x 2^shift` colour pixels,
+/// that needs no clearing between frames. A cell is `(age << 24) | depth` (depth quantised to
+/// 0.1 mm): cells from earlier frames have a larger age, so one unsigned `min` both replaces
+/// stale cells and keeps the nearest depth of this frame. Small, coarse cells keep the map in
+/// cache; the update is branch-free and division-free.
+#[derive(Debug, Clone, Default)]
+struct MinDepthMap {
+    cells: Vec<u32>,
+    width: usize,
+    height: usize,
+    shift: u32,
+    age: u32,
+}
+
+impl MinDepthMap {
+    fn begin_frame(&mut self, color_width: u32, color_height: u32, shift: u32) {
+        let width = (color_width as usize).div_ceil(1 << shift);
+        let height = (color_height as usize).div_ceil(1 << shift);
+        if (self.width, self.height, self.shift) != (width, height, shift) || self.age == 0 {
+            self.cells.clear();
+            self.cells.resize(width * height, u32::MAX);
+            (self.width, self.height, self.shift) = (width, height, shift);
+            self.age = (1 << (32 - FILTER_DEPTH_BITS)) - 1;
+        }
+        self.age -= 1;
+    }
+
+    /// Quantised depth (`z_m >= 0`).
+    #[inline]
+    fn quantise(z_m: f64) -> u32 {
+        // Truncating after adding 0.5 rounds half up for non-negative values.
+        (z_m / FILTER_DEPTH_QUANTUM_M + 0.5).min(f64::from((1u32 << FILTER_DEPTH_BITS) - 1)) as u32
+    }
+
+    /// The cell of colour pixel `(cu, cv)` (both on the image).
+    #[inline]
+    fn cell_of(&self, cu: usize, cv: usize) -> (usize, usize) {
+        (cu >> self.shift, cv >> self.shift)
+    }
+
+    /// Keep the nearer of the cell's depth and quantised depth `q`.
+    #[inline]
+    fn lower(&mut self, (x, y): (usize, usize), q: u32) {
+        let key = (self.age << FILTER_DEPTH_BITS) | q;
+        let cell = &mut self.cells[y * self.width + x];
+        *cell = (*cell).min(key);
+    }
+
+    /// The nearest quantised depth of this frame within `(hw, hh)` cells of cell `(x, y)`.
+    #[inline]
+    fn nearest(&self, (x, y): (usize, usize), (hw, hh): (usize, usize)) -> Option<u32> {
+        let (x0, x1) = (x.saturating_sub(hw), (x + hw).min(self.width - 1));
+        let mut m = u32::MAX;
+        for row in y.saturating_sub(hh)..=(y + hh).min(self.height - 1) {
+            let start = row * self.width;
+            for &cell in &self.cells[start + x0..=start + x1] {
+                m = m.min(cell);
+            }
+        }
+        (m >> FILTER_DEPTH_BITS == self.age).then_some(m & ((1 << FILTER_DEPTH_BITS) - 1))
+    }
+}
 
 impl CloudBuilder {
     /// Prepare for one calibration.
@@ -275,11 +350,18 @@ impl CloudBuilder {
                     .depth_camera
                     .ray_table()
                     .into_iter()
-                    .map(|r| r.map(|r| [r.x, r.y]))
+                    .map(|r| r.map_or([f64::NAN; 2], |r| [r.x, r.y]))
                     .collect(),
                 depth_to_color: match calibration.registration {
                     RegistrationModel::AlreadyRegistered => None,
                     _ => calibration.depth_to_color()?,
+                },
+                filter_shift: {
+                    let (d, c) = (&calibration.depth_camera, &calibration.color_camera);
+                    ((c.fx + c.fy) / (d.fx + d.fy))
+                        .log2()
+                        .floor()
+                        .clamp(0.0, 3.0) as u32
                 },
             },
         };
@@ -287,8 +369,10 @@ impl CloudBuilder {
             calibration: calibration.clone(),
             config,
             engine,
-            filter_map: Vec::new(),
-            color_index: vec![NO_COLOR; calibration.depth_camera.pixel_count()],
+            filter_map: MinDepthMap::default(),
+            color_index: vec![0; calibration.depth_camera.pixel_count()],
+            color_cell: vec![(0, 0, 0); calibration.depth_camera.pixel_count()],
+            candidates: Vec::with_capacity(calibration.depth_camera.pixel_count()),
         })
     }
 
@@ -336,8 +420,10 @@ impl CloudBuilder {
             .config
             .camera_to_world
             .unwrap_or_else(Isometry3::identity);
-        cloud.points.clear();
-        cloud.points.resize(dcam.pixel_count(), None);
+        if cloud.points.len() != dcam.pixel_count() {
+            cloud.points.clear();
+            cloud.points.resize(dcam.pixel_count(), None);
+        }
         let unit_m = depth.unit_m();
         let offset_m = self.calibration.depth_offset_m;
         let (min_z, max_z) = (self.config.min_depth_m, self.config.max_depth_m);
@@ -346,18 +432,34 @@ impl CloudBuilder {
             Engine::Rays {
                 rays,
                 depth_to_color,
+                filter_shift,
             } => {
                 let filter = self.config.occlusion_filter;
+                let (filter_half, filter_tolerance) = filter.map_or(((0, 0), 0.0), |f| {
+                    let cells = |px: u32| (px as usize).div_ceil(1 << *filter_shift);
+                    (
+                        (cells(f.half_width_px), cells(f.half_height_px)),
+                        f.tolerance,
+                    )
+                });
                 if filter.is_some() {
-                    self.filter_map.clear();
-                    self.filter_map.resize(ccam.pixel_count(), f32::INFINITY);
+                    self.filter_map
+                        .begin_frame(ccam.width, ccam.height, *filter_shift);
                 }
                 let cw = ccam.width as i64;
                 let ch = ccam.height as i64;
-                for (i, (&raw, ray)) in depth.values().iter().zip(rays.iter()).enumerate() {
-                    self.color_index[i] = NO_COLOR;
-                    let Some([rx, ry]) = *ray else { continue };
-                    if raw == 0 {
+                let w = dcam.width as usize;
+                self.candidates.clear();
+                for (i, ((&raw, ray), slot)) in depth
+                    .values()
+                    .iter()
+                    .zip(rays.iter())
+                    .zip(cloud.points.iter_mut())
+                    .enumerate()
+                {
+                    *slot = None;
+                    let [rx, ry] = *ray;
+                    if raw == 0 || rx.is_nan() {
                         continue;
                     }
                     let z = f64::from(raw) * unit_m + offset_m;
@@ -366,60 +468,53 @@ impl CloudBuilder {
                     }
                     let p = Point3::new(rx * z, ry * z, z);
                     valid += 1;
-                    cloud.points[i] = Some(TexturedPoint {
+                    *slot = Some(TexturedPoint {
                         position_m: p,
                         rgb: None,
                     });
                     // Colour pixel of this point.
                     let (cu, cv, zc) = match depth_to_color {
-                        None => (
-                            (i % dcam.width as usize) as i64,
-                            (i / dcam.width as usize) as i64,
-                            z,
-                        ),
+                        None => ((i % w) as i64, (i / w) as i64, z),
                         Some(t) => {
                             let pc = *t * p;
                             let Some(px) = ccam.project(&pc) else {
                                 continue;
                             };
-                            let cu = (px.x + 0.5).floor();
-                            let cv = (px.y + 0.5).floor();
+                            // Truncation is rounding half up here: both are >= 0.
+                            let (cu, cv) = (px.x + 0.5, px.y + 0.5);
                             if !(cu >= 0.0 && cv >= 0.0 && cu < cw as f64 && cv < ch as f64) {
                                 continue;
                             }
                             (cu as i64, cv as i64, pc.z)
                         }
                     };
-                    let ci = (cv * cw + cu) as u32;
-                    self.color_index[i] = ci;
-                    if let Some(f) = &filter {
-                        let zf = zc as f32;
-                        let (hw, hh) = (i64::from(f.half_width_px), i64::from(f.half_height_px));
-                        for y in (cv - hh).max(0)..=(cv + hh).min(ch - 1) {
-                            let row = (y * cw) as usize;
-                            for x in (cu - hw).max(0)..=(cu + hw).min(cw - 1) {
-                                let slot = &mut self.filter_map[row + x as usize];
-                                if zf < *slot {
-                                    *slot = zf;
-                                }
-                            }
-                        }
+                    self.color_index[i] = (cv * cw + cu) as u32;
+                    self.candidates.push(i as u32);
+                    if filter.is_some() {
+                        let cell = self.filter_map.cell_of(cu as usize, cv as usize);
+                        let q = MinDepthMap::quantise(zc);
+                        self.filter_map.lower(cell, q);
+                        self.color_cell[i] = (cell.0 as u32, cell.1 as u32, q);
                     }
                 }
                 let raw = color.as_raw();
-                for (i, point) in cloud.points.iter_mut().enumerate() {
+                for &i in &self.candidates {
+                    let i = i as usize;
                     let ci = self.color_index[i];
-                    let Some(point) = point else { continue };
-                    if ci == NO_COLOR {
+                    let Some(point) = cloud.points[i].as_mut() else {
                         continue;
-                    }
-                    if let Some(f) = &filter {
-                        let zc = match depth_to_color {
-                            None => point.position_m.z,
-                            Some(t) => (*t * point.position_m).z,
-                        };
-                        let min_z = f64::from(self.filter_map[ci as usize]);
-                        if (zc - min_z) / zc > f.tolerance {
+                    };
+                    if filter.is_some() {
+                        // The nearest surface the colour camera sees in the window around this
+                        // point's colour pixel (libfreenect2's test, which spreads each depth
+                        // over the window where this gathers it; the window is rounded up to
+                        // whole cells).
+                        let (x, y, own) = self.color_cell[i];
+                        if let Some(nearest) = self
+                            .filter_map
+                            .nearest((x as usize, y as usize), filter_half)
+                            && f64::from(own - nearest.min(own)) > filter_tolerance * f64::from(own)
+                        {
                             continue;
                         }
                     }
@@ -444,6 +539,7 @@ impl CloudBuilder {
                 )?;
                 let (fx, fy, cx, cy) = (dcam.fx, dcam.fy, dcam.cx, dcam.cy);
                 let w = dcam.width as usize;
+                cloud.points.fill(None);
                 for (i, (&z_mm, rgb)) in frame
                     .undistorted_mm
                     .iter()

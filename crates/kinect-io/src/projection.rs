@@ -22,8 +22,6 @@ const SPLAT_MARGIN: f64 = 0.15;
 /// cloud seen from its own camera) stays one pixel.
 const SPLAT_SLACK_PX: f64 = 0.1;
 
-const NO_POINT: u32 = u32::MAX;
-
 /// How large a square each point covers on the projection image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Splat {
@@ -112,8 +110,22 @@ pub struct ProjectionImage {
     camera: CameraModel,
     cloud_to_camera: Isometry3<f64>,
     image: RgbImage,
-    index: Vec<u32>,
-    depth_m: Vec<f32>,
+    /// Per pixel: the shown point's depth (`f32` bits, high half) and index (low half), or
+    /// [`EMPTY`]. Depths are positive, so their bits order as the depths do and the z-test is
+    /// one integer comparison.
+    keys: Vec<u64>,
+}
+
+const EMPTY: u64 = u64::MAX;
+
+#[inline]
+fn key_index(key: u64) -> u32 {
+    key as u32
+}
+
+#[inline]
+fn key_depth(key: u64) -> f32 {
+    f32::from_bits((key >> 32) as u32)
 }
 
 /// Splat `cloud` onto `camera`, placed by `cloud_to_camera` (the transform from the cloud's
@@ -121,7 +133,8 @@ pub struct ProjectionImage {
 /// camera).
 ///
 /// # Errors
-/// [`KinectError::InvalidParameter`] for an invalid camera.
+/// [`KinectError::InvalidParameter`] for an invalid camera or a cloud of more than 2³²
+/// entries.
 pub fn project_cloud(
     cloud: &TexturedCloud,
     camera: &CameraModel,
@@ -133,36 +146,41 @@ pub fn project_cloud(
         camera: *camera,
         cloud_to_camera: *cloud_to_camera,
         image: RgbImage::new(camera.width, camera.height),
-        index: Vec::new(),
-        depth_m: Vec::new(),
+        keys: Vec::new(),
     };
-    out.render(cloud, config);
+    out.render(cloud, config)?;
     Ok(out)
 }
 
 impl ProjectionImage {
     /// Re-render for a new cloud with the same camera and placement, reusing every buffer.
-    pub fn update(&mut self, cloud: &TexturedCloud, config: &ProjectionConfig) {
-        self.render(cloud, config);
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] for a cloud of more than 2³² entries.
+    pub fn update(&mut self, cloud: &TexturedCloud, config: &ProjectionConfig) -> Result<()> {
+        self.render(cloud, config)
     }
 
-    fn render(&mut self, cloud: &TexturedCloud, config: &ProjectionConfig) {
+    fn render(&mut self, cloud: &TexturedCloud, config: &ProjectionConfig) -> Result<()> {
+        if u32::try_from(cloud.points().len()).is_err() {
+            return Err(KinectError::param(
+                "cloud",
+                format!(
+                    "{} entries; a projection image indexes at most 2^32",
+                    cloud.points().len()
+                ),
+            ));
+        }
         let cam = self.camera;
         let n = cam.pixel_count();
-        self.index.clear();
-        self.index.resize(n, NO_POINT);
-        self.depth_m.clear();
-        self.depth_m.resize(n, f32::INFINITY);
-        for px in self.image.pixels_mut() {
-            px.0 = config.background_rgb;
-        }
+        self.keys.clear();
+        self.keys.resize(n, EMPTY);
         let (w, h) = (i64::from(cam.width), i64::from(cam.height));
         let source = cloud.source_camera();
         let source_f = 0.5 * (source.fx + source.fy);
         let target_f = 0.5 * (cam.fx + cam.fy);
         let cloud_to_source = cloud.camera_to_cloud().inverse();
         let identity_source = *cloud.camera_to_cloud() == Isometry3::identity();
-        let raw = self.image.as_mut();
         for (i, p) in cloud.iter_valid() {
             let pc = self.cloud_to_camera * p.position_m;
             let Some(px) = cam.project(&pc) else { continue };
@@ -175,37 +193,47 @@ impl ProjectionImage {
                         (cloud_to_source * p.position_m).z
                     };
                     let size = target_f * z_source / (source_f * pc.z);
-                    let r = ((size * (1.0 + SPLAT_MARGIN) - 1.0) * 0.5 - SPLAT_SLACK_PX).ceil();
-                    if r.is_finite() {
-                        r.clamp(0.0, f64::from(MAX_AUTO_SPLAT_RADIUS_PX)) as i64
-                    } else {
-                        0
-                    }
+                    let r = (size * (1.0 + SPLAT_MARGIN) - 1.0) * 0.5 - SPLAT_SLACK_PX;
+                    ceil_non_negative(r).min(i64::from(MAX_AUTO_SPLAT_RADIUS_PX))
                 }
             };
-            let cu = (px.x + 0.5).floor();
-            let cv = (px.y + 0.5).floor();
-            if !(cu >= -(radius as f64) && cv >= -(radius as f64))
-                || cu >= (w + radius) as f64
-                || cv >= (h + radius) as f64
+            // The nearest pixel centre, floor(x + 0.5); one off the image still splats onto it.
+            let (fu, fv) = (px.x + 0.5, px.y + 0.5);
+            let reach = radius as f64;
+            if !(fu >= -reach
+                && fv >= -reach
+                && fu < (w + radius) as f64
+                && fv < (h + radius) as f64)
             {
                 continue;
             }
-            let (cu, cv) = (cu as i64, cv as i64);
-            let z = pc.z as f32;
-            let rgb = p.rgb.unwrap_or(config.uncolored_rgb);
+            let (cu, cv) = (floor_small(fu), floor_small(fv));
+            let key = (u64::from((pc.z as f32).to_bits()) << 32) | i as u64;
+            let (x0, x1) = (
+                (cu - radius).max(0) as usize,
+                (cu + radius).min(w - 1) as usize,
+            );
             for y in (cv - radius).max(0)..=(cv + radius).min(h - 1) {
                 let row = (y * w) as usize;
-                for x in (cu - radius).max(0)..=(cu + radius).min(w - 1) {
-                    let at = row + x as usize;
-                    if z < self.depth_m[at] {
-                        self.depth_m[at] = z;
-                        self.index[at] = i as u32;
-                        raw[3 * at..3 * at + 3].copy_from_slice(&rgb);
-                    }
+                for cell in &mut self.keys[row + x0..=row + x1] {
+                    *cell = (*cell).min(key);
                 }
             }
         }
+        let points = cloud.points();
+        for (px, &key) in self.image.pixels_mut().zip(self.keys.iter()) {
+            px.0 = if key == EMPTY {
+                config.background_rgb
+            } else {
+                points
+                    .get(key_index(key) as usize)
+                    .copied()
+                    .flatten()
+                    .and_then(|p| p.rgb)
+                    .unwrap_or(config.uncolored_rgb)
+            };
+        }
+        Ok(())
     }
 
     /// The camera of this image.
@@ -229,19 +257,22 @@ impl ProjectionImage {
         if u >= self.camera.width || v >= self.camera.height {
             return None;
         }
-        let i = self.index[v as usize * self.camera.width as usize + u as usize];
-        (i != NO_POINT).then_some(i as usize)
+        let key = self.keys[v as usize * self.camera.width as usize + u as usize];
+        (key != EMPTY).then_some(key_index(key) as usize)
     }
 
     /// Depth (metres, along the projection camera's axis) of the point shown at `(u, v)`.
     pub fn depth_m(&self, u: u32, v: u32) -> Option<f64> {
-        self.point_index(u, v)
-            .map(|_| f64::from(self.depth_m[v as usize * self.camera.width as usize + u as usize]))
+        if u >= self.camera.width || v >= self.camera.height {
+            return None;
+        }
+        let key = self.keys[v as usize * self.camera.width as usize + u as usize];
+        (key != EMPTY).then(|| f64::from(key_depth(key)))
     }
 
     /// Number of pixels that show a point.
     pub fn covered_pixels(&self) -> usize {
-        self.index.iter().filter(|&&i| i != NO_POINT).count()
+        self.keys.iter().filter(|&&k| k != EMPTY).count()
     }
 
     /// Lift a sub-pixel position of this image to a 3D point of `cloud` (the cloud this image
@@ -300,10 +331,9 @@ impl ProjectionImage {
             while x <= x1 {
                 let d2 = (x - pixel.x).powi(2) + (y - pixel.y).powi(2);
                 if d2 <= r * r {
-                    let at = y as usize * self.camera.width as usize + x as usize;
-                    let i = self.index[at];
-                    if i != NO_POINT {
-                        scratch.push((d2, self.depth_m[at], i));
+                    let key = self.keys[y as usize * self.camera.width as usize + x as usize];
+                    if key != EMPTY {
+                        scratch.push((d2, key_depth(key), key_index(key)));
                     }
                 }
                 x += 1.0;
@@ -345,6 +375,23 @@ impl ProjectionImage {
             median(&mut zs)?,
         ))
     }
+}
+
+/// `floor(x)` for |x| well inside the `i64` range, without a libm call.
+#[inline]
+fn floor_small(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x { t - 1 } else { t }
+}
+
+/// `ceil(x)` for the splat radius, 0 for negative or NaN input (no libm call on the hot path).
+#[inline]
+fn ceil_non_negative(x: f64) -> i64 {
+    if x.is_nan() || x <= 0.0 {
+        return 0;
+    }
+    let t = x.min(1e9) as i64;
+    if (t as f64) < x { t + 1 } else { t }
 }
 
 /// Median of a non-empty slice (mean of the two middle values for an even count).
