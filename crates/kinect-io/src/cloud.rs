@@ -226,9 +226,6 @@ enum Engine {
         /// Undistorted normalised ray per depth pixel; NaN where the distortion cannot be
         /// inverted.
         rays: Vec<[f64; 2]>,
-        /// Occlusion-map cells are `2^filter_shift` colour pixels wide: the spacing of depth
-        /// samples on the colour image rounded down to a power of two (2 for a Kinect V2).
-        filter_shift: u32,
         depth_to_color: Option<Isometry3<f64>>,
     },
     Freenect2 {
@@ -261,28 +258,24 @@ pub struct CloudBuilder {
 const FILTER_DEPTH_QUANTUM_M: f64 = 1e-4;
 const FILTER_DEPTH_BITS: u32 = 24;
 
-/// A minimum-depth map over the colour image, in cells of `2^shift x 2^shift` colour pixels,
-/// that needs no clearing between frames. A cell is `(age << 24) | depth` (depth quantised to
-/// 0.1 mm): cells from earlier frames have a larger age, so one unsigned `min` both replaces
-/// stale cells and keeps the nearest depth of this frame. Small, coarse cells keep the map in
-/// cache; the update is branch-free and division-free.
+/// A minimum-depth map over the colour image that needs no clearing between frames. A cell is
+/// `(age << 24) | depth` (depth quantised to 0.1 mm): cells from earlier frames have a larger
+/// age, so one unsigned `min` both replaces stale cells and keeps the nearest depth of this
+/// frame. Saves clearing the map (8 MB at 1920x1080) every frame; the update is branch-free.
 #[derive(Debug, Clone, Default)]
 struct MinDepthMap {
     cells: Vec<u32>,
     width: usize,
     height: usize,
-    shift: u32,
     age: u32,
 }
 
 impl MinDepthMap {
-    fn begin_frame(&mut self, color_width: u32, color_height: u32, shift: u32) {
-        let width = (color_width as usize).div_ceil(1 << shift);
-        let height = (color_height as usize).div_ceil(1 << shift);
-        if (self.width, self.height, self.shift) != (width, height, shift) || self.age == 0 {
+    fn begin_frame(&mut self, width: usize, height: usize) {
+        if (self.width, self.height) != (width, height) || self.age == 0 {
             self.cells.clear();
             self.cells.resize(width * height, u32::MAX);
-            (self.width, self.height, self.shift) = (width, height, shift);
+            (self.width, self.height) = (width, height);
             self.age = (1 << (32 - FILTER_DEPTH_BITS)) - 1;
         }
         self.age -= 1;
@@ -295,12 +288,6 @@ impl MinDepthMap {
         (z_m / FILTER_DEPTH_QUANTUM_M + 0.5).min(f64::from((1u32 << FILTER_DEPTH_BITS) - 1)) as u32
     }
 
-    /// The cell of colour pixel `(cu, cv)` (both on the image).
-    #[inline]
-    fn cell_of(&self, cu: usize, cv: usize) -> (usize, usize) {
-        (cu >> self.shift, cv >> self.shift)
-    }
-
     /// Keep the nearer of the cell's depth and quantised depth `q`.
     #[inline]
     fn lower(&mut self, (x, y): (usize, usize), q: u32) {
@@ -309,7 +296,7 @@ impl MinDepthMap {
         *cell = (*cell).min(key);
     }
 
-    /// The nearest quantised depth of this frame within `(hw, hh)` cells of cell `(x, y)`.
+    /// The nearest quantised depth of this frame within `(hw, hh)` pixels of `(x, y)`.
     #[inline]
     fn nearest(&self, (x, y): (usize, usize), (hw, hh): (usize, usize)) -> Option<u32> {
         let (x0, x1) = (x.saturating_sub(hw), (x + hw).min(self.width - 1));
@@ -355,13 +342,6 @@ impl CloudBuilder {
                 depth_to_color: match calibration.registration {
                     RegistrationModel::AlreadyRegistered => None,
                     _ => calibration.depth_to_color()?,
-                },
-                filter_shift: {
-                    let (d, c) = (&calibration.depth_camera, &calibration.color_camera);
-                    ((c.fx + c.fy) / (d.fx + d.fy))
-                        .log2()
-                        .floor()
-                        .clamp(0.0, 3.0) as u32
                 },
             },
         };
@@ -432,19 +412,17 @@ impl CloudBuilder {
             Engine::Rays {
                 rays,
                 depth_to_color,
-                filter_shift,
             } => {
                 let filter = self.config.occlusion_filter;
                 let (filter_half, filter_tolerance) = filter.map_or(((0, 0), 0.0), |f| {
-                    let cells = |px: u32| (px as usize).div_ceil(1 << *filter_shift);
                     (
-                        (cells(f.half_width_px), cells(f.half_height_px)),
+                        (f.half_width_px as usize, f.half_height_px as usize),
                         f.tolerance,
                     )
                 });
                 if filter.is_some() {
                     self.filter_map
-                        .begin_frame(ccam.width, ccam.height, *filter_shift);
+                        .begin_frame(ccam.width as usize, ccam.height as usize);
                 }
                 let cw = ccam.width as i64;
                 let ch = ccam.height as i64;
@@ -491,7 +469,7 @@ impl CloudBuilder {
                     self.color_index[i] = (cv * cw + cu) as u32;
                     self.candidates.push(i as u32);
                     if filter.is_some() {
-                        let cell = self.filter_map.cell_of(cu as usize, cv as usize);
+                        let cell = (cu as usize, cv as usize);
                         let q = MinDepthMap::quantise(zc);
                         self.filter_map.lower(cell, q);
                         self.color_cell[i] = (cell.0 as u32, cell.1 as u32, q);
@@ -507,8 +485,8 @@ impl CloudBuilder {
                     if filter.is_some() {
                         // The nearest surface the colour camera sees in the window around this
                         // point's colour pixel (libfreenect2's test, which spreads each depth
-                        // over the window where this gathers it; the window is rounded up to
-                        // whole cells).
+                        // over the window where this gathers it: the same for a symmetric
+                        // window).
                         let (x, y, own) = self.color_cell[i];
                         if let Some(nearest) = self
                             .filter_map
@@ -689,6 +667,68 @@ mod tests {
             a.get(250, 200).and_then(|p| p.rgb).is_some(),
             "the post keeps its colour"
         );
+    }
+
+    #[test]
+    fn occlusion_filter_matches_a_brute_force_reference() {
+        use crate::synth;
+        let mut config = synth::SynthConfig::kinect_v2(2.2, 1.1, 3);
+        config.calibration.color_camera =
+            config.calibration.color_camera.scaled(0.5).expect("valid");
+        let frame = synth::render(&synth::demo_tree(3), &config).expect("renders");
+        let calibration = &config.calibration;
+        let filter = OcclusionFilter::default();
+        let cloud = CloudBuilder::new(calibration, CloudConfig::default())
+            .expect("ok")
+            .build(&frame.depth, &frame.color)
+            .expect("ok");
+        // Reference: every point's colour pixel and colour-camera depth, then for each point
+        // the nearest depth of any point whose colour pixel is within the window.
+        let t = calibration.depth_to_color().expect("ok").expect("rigid");
+        let cam = calibration.color_camera;
+        let projected: Vec<Option<(i64, i64, f64)>> = cloud
+            .points()
+            .iter()
+            .map(|p| {
+                let pc = t * p.as_ref()?.position_m;
+                let px = cam.project(&pc)?;
+                let (u, v) = cam.pixel_at(&px)?;
+                Some((i64::from(u), i64::from(v), pc.z))
+            })
+            .collect();
+        let mut nearest = std::collections::HashMap::<(i64, i64), f64>::new();
+        for &(u, v, z) in projected.iter().flatten() {
+            let e = nearest.entry((u, v)).or_insert(f64::INFINITY);
+            *e = e.min(z);
+        }
+        let (hw, hh) = (
+            i64::from(filter.half_width_px),
+            i64::from(filter.half_height_px),
+        );
+        let mut checked = 0;
+        for (p, proj) in cloud.points().iter().zip(&projected) {
+            let (Some(p), Some((u, v, z))) = (p, proj) else {
+                continue;
+            };
+            let mut m = f64::INFINITY;
+            for y in v - hh..=v + hh {
+                for x in u - hw..=u + hw {
+                    m = m.min(nearest.get(&(x, y)).copied().unwrap_or(f64::INFINITY));
+                }
+            }
+            let occluded = (z - m) / z > filter.tolerance;
+            // Skip razor-edge cases where 0.1 mm quantisation may decide.
+            if ((z - m) / z - filter.tolerance).abs() < 1e-4 {
+                continue;
+            }
+            assert_eq!(
+                p.rgb.is_none(),
+                occluded,
+                "point at {u},{v} z {z} nearest {m}"
+            );
+            checked += 1;
+        }
+        assert!(checked > 10_000, "{checked}");
     }
 
     #[test]
