@@ -2,6 +2,9 @@
 //! synthetic captures, and checks on the real data in `../shared/data` (skipped with a printed
 //! reason when it is absent).
 
+// Helpers here are test code too: a failed expectation is a failed test.
+#![allow(clippy::expect_used, clippy::unwrap_used, clippy::panic)]
+
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
