@@ -10,8 +10,8 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use treemocap::kinect_io::synth::{self, SynthConfig};
 use treemocap::kinect_io::{
-    Calibration, CloudBuilder, CloudConfig, Freenect2ColorParams, Freenect2IrParams, LiftConfig,
-    ProjectionConfig, project_cloud,
+    Calibration, CloudBuilder, CloudConfig, DepthImage, Freenect2ColorParams, Freenect2IrParams,
+    LiftConfig, ProjectionConfig, project_cloud,
 };
 use treemocap::nalgebra::Isometry3;
 
@@ -33,6 +33,25 @@ fn kinect_io(c: &mut Criterion) {
         })
     });
 
+    // Worst case: every depth pixel valid (a wall at 2 m filling the view).
+    let wall = DepthImage::new(
+        frame.depth.width(),
+        frame.depth.height(),
+        frame.depth.unit_m(),
+        vec![2000; frame.depth.values().len()],
+    )
+    .expect("valid size");
+    group.bench_function("cloud_rigid_registration_all_pixels_valid_512x424", |b| {
+        b.iter(|| {
+            builder
+                .build_into(black_box(&wall), black_box(&frame.color), &mut cloud)
+                .expect("valid frame")
+        })
+    });
+    builder
+        .build_into(&frame.depth, &frame.color, &mut cloud)
+        .expect("valid frame");
+
     let mut plain = CloudBuilder::new(
         &calibration,
         CloudConfig {
@@ -48,6 +67,16 @@ fn kinect_io(c: &mut Criterion) {
                 .expect("valid frame")
         })
     });
+    group.bench_function(
+        "cloud_rigid_registration_no_filter_all_pixels_valid_512x424",
+        |b| {
+            b.iter(|| {
+                plain
+                    .build_into(black_box(&wall), black_box(&frame.color), &mut cloud)
+                    .expect("valid frame")
+            })
+        },
+    );
 
     let ir = Freenect2IrParams {
         fx: 365.5,
