@@ -25,7 +25,9 @@ const UNDISTORT_MAX_ITERATIONS: usize = 30;
 const UNDISTORT_TOLERANCE: f64 = 1e-12;
 
 /// Brown–Conrady lens distortion: radial `k1, k2, k3` and tangential `p1, p2`, in OpenCV's
-/// definition (`distCoeffs = [k1, k2, p1, p2, k3]`). All zero means no distortion.
+/// definition (`distCoeffs = [k1, k2, p1, p2, k3]`), plus OpenCV's optional rational
+/// denominator `k4, k5, k6` (`[k1, k2, p1, p2, k3, k4, k5, k6]`, the model Azure Kinect
+/// calibrations use; zero for plain Brown–Conrady). All zero means no distortion.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Distortion {
     /// Radial coefficient of r².
@@ -38,20 +40,30 @@ pub struct Distortion {
     pub p1: f64,
     /// Tangential coefficient p2.
     pub p2: f64,
+    /// Rational denominator coefficient of r² (0 for plain Brown–Conrady).
+    #[serde(default)]
+    pub k4: f64,
+    /// Rational denominator coefficient of r⁴.
+    #[serde(default)]
+    pub k5: f64,
+    /// Rational denominator coefficient of r⁶.
+    #[serde(default)]
+    pub k6: f64,
 }
 
 impl Distortion {
-    /// From OpenCV's coefficient order `[k1, k2, p1, p2, k3]` (the `k3` may be missing).
+    /// From OpenCV's coefficient order `[k1, k2, p1, p2, k3, k4, k5, k6]` (4, 5 or 8 values;
+    /// missing ones are zero).
     ///
     /// # Errors
-    /// [`KinectError::InvalidParameter`] when fewer than 4 or more than 5 values are given, or a
-    /// value is not finite. (OpenCV's rational and thin-prism models are not supported.)
+    /// [`KinectError::InvalidParameter`] for another count (OpenCV's thin-prism and tilted
+    /// models, 12 and 14 values, are not supported) or a value that is not finite.
     pub fn from_opencv(coefficients: &[f64]) -> Result<Self> {
-        if !(4..=5).contains(&coefficients.len()) {
+        if ![4, 5, 8].contains(&coefficients.len()) {
             return Err(KinectError::param(
                 "distortion coefficients",
                 format!(
-                    "expected 4 or 5 values [k1, k2, p1, p2, k3], got {}",
+                    "expected 4, 5 or 8 values [k1, k2, p1, p2, k3, k4, k5, k6], got {}",
                     coefficients.len()
                 ),
             ));
@@ -68,12 +80,30 @@ impl Distortion {
             p1: coefficients[2],
             p2: coefficients[3],
             k3: coefficients.get(4).copied().unwrap_or(0.0),
+            k4: coefficients.get(5).copied().unwrap_or(0.0),
+            k5: coefficients.get(6).copied().unwrap_or(0.0),
+            k6: coefficients.get(7).copied().unwrap_or(0.0),
         })
     }
 
-    /// OpenCV's coefficient order `[k1, k2, p1, p2, k3]`.
-    pub fn to_opencv(&self) -> [f64; 5] {
-        [self.k1, self.k2, self.p1, self.p2, self.k3]
+    /// OpenCV's coefficient order `[k1, k2, p1, p2, k3, k4, k5, k6]`.
+    pub fn to_opencv(&self) -> [f64; 8] {
+        [
+            self.k1, self.k2, self.p1, self.p2, self.k3, self.k4, self.k5, self.k6,
+        ]
+    }
+
+    /// Radial factor and its derivative with respect to r².
+    #[inline]
+    fn radial(&self, r2: f64) -> (f64, f64) {
+        let num = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        let d_num = self.k1 + r2 * (2.0 * self.k2 + 3.0 * r2 * self.k3);
+        if self.k4 == 0.0 && self.k5 == 0.0 && self.k6 == 0.0 {
+            return (num, d_num);
+        }
+        let den = 1.0 + r2 * (self.k4 + r2 * (self.k5 + r2 * self.k6));
+        let d_den = self.k4 + r2 * (2.0 * self.k5 + 3.0 * r2 * self.k6);
+        (num / den, (d_num * den - num * d_den) / (den * den))
     }
 
     /// True when every coefficient is zero.
@@ -85,7 +115,7 @@ impl Distortion {
     #[inline]
     pub fn apply(&self, x: f64, y: f64) -> (f64, f64) {
         let r2 = x * x + y * y;
-        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        let (radial, _) = self.radial(r2);
         let xd = x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x);
         let yd = y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y;
         (xd, yd)
@@ -107,8 +137,7 @@ impl Distortion {
                 return Some((x, y));
             }
             let r2 = x * x + y * y;
-            let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-            let d_radial = self.k1 + r2 * (2.0 * self.k2 + 3.0 * r2 * self.k3);
+            let (radial, d_radial) = self.radial(r2);
             let j11 = radial + 2.0 * x * x * d_radial + 2.0 * self.p1 * y + 6.0 * self.p2 * x;
             let j12 = 2.0 * x * y * d_radial + 2.0 * self.p1 * x + 2.0 * self.p2 * y;
             let j22 = radial + 2.0 * y * y * d_radial + 6.0 * self.p1 * y + 2.0 * self.p2 * x;
@@ -195,8 +224,7 @@ impl CameraModel {
                 k1: 0.09,
                 k2: -0.27,
                 k3: 0.09,
-                p1: 0.0,
-                p2: 0.0,
+                ..Distortion::default()
             },
         }
     }
@@ -298,7 +326,8 @@ impl CameraModel {
             return None;
         }
         let (xd, yd) = self.distortion.apply(point.x / point.z, point.y / point.z);
-        Some(Point2::new(self.fx * xd + self.cx, self.fy * yd + self.cy))
+        let pixel = Point2::new(self.fx * xd + self.cx, self.fy * yd + self.cy);
+        (pixel.x.is_finite() && pixel.y.is_finite()).then_some(pixel)
     }
 
     /// The normalised, undistorted ray `(x, y)` with `X = x Z, Y = y Z` seen at `pixel`.
@@ -394,10 +423,43 @@ mod tests {
     }
 
     #[test]
-    fn opencv_order_is_k1_k2_p1_p2_k3() {
+    fn opencv_order_is_k1_k2_p1_p2_k3_k4_k5_k6() {
         let d = Distortion::from_opencv(&[1.0, 2.0, 3.0, 4.0, 5.0]).expect("five values");
         assert_eq!((d.k1, d.k2, d.p1, d.p2, d.k3), (1.0, 2.0, 3.0, 4.0, 5.0));
+        let d = Distortion::from_opencv(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]).expect("eight");
+        assert_eq!((d.k4, d.k5, d.k6), (6.0, 7.0, 8.0));
+        assert_eq!(d.to_opencv(), [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]);
         assert!(Distortion::from_opencv(&[1.0, 2.0, 3.0]).is_err());
+        assert!(Distortion::from_opencv(&[0.0; 12]).is_err());
+    }
+
+    #[test]
+    fn rational_model_round_trip() {
+        // Coefficients of the kind an Azure Kinect depth camera reports (rational model).
+        let camera = CameraModel {
+            distortion: Distortion::from_opencv(&[
+                3.28, 2.07, 0.00004, -0.00002, 0.10, 3.61, 3.10, 0.54,
+            ])
+            .expect("eight values"),
+            ..CameraModel::kinect_v2_depth()
+        };
+        for (u, v) in [(10.0, 10.0), (256.0, 207.0), (500.0, 400.0)] {
+            let pixel = Point2::new(u, v);
+            let point = camera.unproject(&pixel, 1.2).expect("invertible");
+            let back = camera.project(&point).expect("front");
+            assert!(
+                (back - pixel).norm() < ROUND_TRIP_TOLERANCE_PX,
+                "{pixel} -> {back}"
+            );
+        }
+        // The rational factor differs from plain Brown-Conrady away from the centre.
+        let plain = Distortion {
+            k4: 0.0,
+            k5: 0.0,
+            k6: 0.0,
+            ..camera.distortion
+        };
+        assert!((plain.apply(0.5, 0.3).0 - camera.distortion.apply(0.5, 0.3).0).abs() > 0.01);
     }
 
     #[test]

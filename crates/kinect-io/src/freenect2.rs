@@ -114,6 +114,7 @@ impl Freenect2IrParams {
                 k3: f64::from(self.k3),
                 p1: f64::from(self.p1),
                 p2: f64::from(self.p2),
+                ..Distortion::default()
             },
         }
     }

@@ -384,7 +384,14 @@ fn camera_strategy() -> impl Strategy<Value = CameraModel> {
             fy: f * aspect,
             cx: 319.5,
             cy: 239.5,
-            distortion: Distortion { k1, k2, k3, p1, p2 },
+            distortion: Distortion {
+                k1,
+                k2,
+                k3,
+                p1,
+                p2,
+                ..Distortion::default()
+            },
         })
 }
 
