@@ -41,16 +41,14 @@ fn kinect_io(c: &mut Criterion) {
         vec![2000; frame.depth.values().len()],
     )
     .expect("valid size");
+    let mut wall_cloud = builder.build(&wall, &frame.color).expect("valid frame");
     group.bench_function("cloud_rigid_registration_all_pixels_valid_512x424", |b| {
         b.iter(|| {
             builder
-                .build_into(black_box(&wall), black_box(&frame.color), &mut cloud)
+                .build_into(black_box(&wall), black_box(&frame.color), &mut wall_cloud)
                 .expect("valid frame")
         })
     });
-    builder
-        .build_into(&frame.depth, &frame.color, &mut cloud)
-        .expect("valid frame");
 
     let mut plain = CloudBuilder::new(
         &calibration,
@@ -119,6 +117,15 @@ fn kinect_io(c: &mut Criterion) {
         b.iter(|| {
             on_depth
                 .update(black_box(&cloud), &proj_config)
+                .expect("small cloud")
+        })
+    });
+
+    let mut on_depth_wall = on_depth.clone();
+    group.bench_function("projection_depth_plane_all_pixels_valid_512x424", |b| {
+        b.iter(|| {
+            on_depth_wall
+                .update(black_box(&wall_cloud), &proj_config)
                 .expect("small cloud")
         })
     });

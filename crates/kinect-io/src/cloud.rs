@@ -395,7 +395,14 @@ impl CloudBuilder {
         check_size("colour image", &ccam, color.width(), color.height())?;
         cloud.width = dcam.width;
         cloud.height = dcam.height;
-        cloud.source_camera = dcam;
+        cloud.source_camera = match self.engine {
+            // libfreenect2's points lie on its undistorted grid: a pinhole image.
+            Engine::Freenect2 { .. } => CameraModel {
+                distortion: crate::camera::Distortion::default(),
+                ..dcam
+            },
+            Engine::Rays { .. } => dcam,
+        };
         cloud.camera_to_cloud = self
             .config
             .camera_to_world

@@ -181,7 +181,22 @@ impl ProjectionImage {
         let target_f = 0.5 * (cam.fx + cam.fy);
         let cloud_to_source = cloud.camera_to_cloud().inverse();
         let identity_source = *cloud.camera_to_cloud() == Isometry3::identity();
-        for (i, p) in cloud.iter_valid() {
+        // The cloud seen from its own camera (the paper's projection image on the capture's
+        // image plane): every point lands on its own pixel, one pixel wide.
+        // Checked on a sample of points, in case a hand-made cloud breaks that contract.
+        let own_view = cam == *source
+            && matches!(config.splat, Splat::Auto | Splat::Radius(0))
+            && is_identity(&(self.cloud_to_camera * cloud.camera_to_cloud()))
+            && sample_on_own_pixels(cloud, &self.cloud_to_camera, &cam);
+        if own_view {
+            for (i, p) in cloud.iter_valid() {
+                let z = (self.cloud_to_camera * p.position_m).z;
+                if z > 0.0 {
+                    self.keys[i] = (u64::from((z as f32).to_bits()) << 32) | i as u64;
+                }
+            }
+        }
+        for (i, p) in cloud.iter_valid().filter(|_| !own_view) {
             let pc = self.cloud_to_camera * p.position_m;
             let Some(px) = cam.project(&pc) else { continue };
             let radius = match config.splat {
@@ -386,6 +401,29 @@ impl ProjectionImage {
     }
 }
 
+/// True when a sample of up to 64 valid points projects onto its own pixel.
+fn sample_on_own_pixels(
+    cloud: &TexturedCloud,
+    cloud_to_camera: &Isometry3<f64>,
+    cam: &CameraModel,
+) -> bool {
+    let n = cloud.points().len();
+    let step = (n / 64).max(1);
+    let w = cam.width as usize;
+    (0..n).step_by(step).all(|i| match &cloud.points()[i] {
+        None => true,
+        Some(p) => cam
+            .project(&(cloud_to_camera * p.position_m))
+            .and_then(|px| cam.pixel_at(&px))
+            .is_some_and(|(u, v)| v as usize * w + u as usize == i),
+    })
+}
+
+/// True when `iso` is the identity up to rounding (1e-12 in rotation and metres).
+fn is_identity(iso: &Isometry3<f64>) -> bool {
+    iso.translation.vector.norm() < 1e-12 && iso.rotation.angle() < 1e-12
+}
+
 /// `floor(x)` for |x| well inside the `i64` range, without a libm call.
 #[inline]
 fn floor_small(x: f64) -> i64 {
@@ -459,6 +497,34 @@ mod tests {
         .expect("valid camera");
         assert_eq!(image.point_index(100, 50), Some(50 * 512 + 100));
         assert_eq!(image.covered_pixels(), 512 * 424);
+    }
+
+    #[test]
+    fn own_view_fast_path_equals_the_general_path() {
+        let (cloud, calibration) = scene();
+        let fast = project_cloud(
+            &cloud,
+            &calibration.depth_camera,
+            &Isometry3::identity(),
+            &ProjectionConfig::default(),
+        )
+        .expect("valid");
+        // A camera equal in all but a negligible principal-point shift takes the general path.
+        let mut nudged = calibration.depth_camera;
+        nudged.cx += 1e-9;
+        let general = project_cloud(
+            &cloud,
+            &nudged,
+            &Isometry3::identity(),
+            &ProjectionConfig::default(),
+        )
+        .expect("valid");
+        assert_eq!(fast.image(), general.image());
+        for v in 0..424 {
+            for u in 0..512 {
+                assert_eq!(fast.point_index(u, v), general.point_index(u, v), "{u},{v}");
+            }
+        }
     }
 
     #[test]
