@@ -76,17 +76,7 @@ fn kinect_io(c: &mut Criterion) {
         },
     );
 
-    let ir = Freenect2IrParams {
-        fx: 365.5,
-        fy: 365.5,
-        cx: 256.0,
-        cy: 207.0,
-        k1: 0.09,
-        k2: -0.27,
-        k3: 0.09,
-        p1: 0.0,
-        p2: 0.0,
-    };
+    let ir = Freenect2IrParams::kinect_v2_typical();
     let color = Freenect2ColorParams::from_pinhole_baseline(&ir, 1081.37, 959.5, 539.5, 52.0);
     let f2 = Calibration::freenect2(ir, color);
     let mut f2_builder = CloudBuilder::new(&f2, CloudConfig::default()).expect("valid");

@@ -371,6 +371,23 @@ impl CameraModel {
         }
     }
 
+    /// Check that an image of `width x height` pixels has this camera's size.
+    ///
+    /// # Errors
+    /// [`KinectError::SizeMismatch`] naming `what` (say, the image file) when it has not.
+    pub fn check_image_size(&self, what: &str, width: u32, height: u32) -> Result<()> {
+        if (self.width, self.height) == (width, height) {
+            return Ok(());
+        }
+        Err(KinectError::SizeMismatch {
+            what: what.to_string(),
+            expected_width: self.width,
+            expected_height: self.height,
+            found_width: width,
+            found_height: height,
+        })
+    }
+
     /// Number of pixels.
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize

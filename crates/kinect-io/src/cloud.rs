@@ -391,8 +391,16 @@ impl CloudBuilder {
     ) -> Result<()> {
         let dcam = self.calibration.depth_camera;
         let ccam = self.calibration.color_camera;
-        check_size("depth image", &dcam, depth.width(), depth.height())?;
-        check_size("colour image", &ccam, color.width(), color.height())?;
+        dcam.check_image_size(
+            "depth image vs. its calibrated camera",
+            depth.width(),
+            depth.height(),
+        )?;
+        ccam.check_image_size(
+            "colour image vs. its calibrated camera",
+            color.width(),
+            color.height(),
+        )?;
         cloud.width = dcam.width;
         cloud.height = dcam.height;
         cloud.source_camera = match self.engine {
@@ -559,19 +567,6 @@ impl CloudBuilder {
         }
         Ok(())
     }
-}
-
-fn check_size(what: &str, camera: &CameraModel, width: u32, height: u32) -> Result<()> {
-    if (camera.width, camera.height) != (width, height) {
-        return Err(KinectError::SizeMismatch {
-            what: format!("{what} vs. its calibrated camera"),
-            expected_width: camera.width,
-            expected_height: camera.height,
-            found_width: width,
-            found_height: height,
-        });
-    }
-    Ok(())
 }
 
 #[cfg(test)]
@@ -742,15 +737,10 @@ mod tests {
     fn freenect2_pinhole_model_matches_the_rigid_model() {
         use crate::freenect2::{Freenect2ColorParams, Freenect2IrParams};
         let ir = Freenect2IrParams {
-            fx: 365.5,
-            fy: 365.5,
-            cx: 256.0,
-            cy: 207.0,
             k1: 0.0,
             k2: 0.0,
             k3: 0.0,
-            p1: 0.0,
-            p2: 0.0,
+            ..Freenect2IrParams::kinect_v2_typical()
         };
         let color = Freenect2ColorParams::from_pinhole_baseline(&ir, 1081.37, 959.5, 539.5, 52.0);
         let f2 = Calibration::freenect2(ir, color);

@@ -99,6 +99,24 @@ pub struct Freenect2ColorParams {
 }
 
 impl Freenect2IrParams {
+    /// Typical Kinect V2 IR factory parameters, the values of [`CameraModel::kinect_v2_depth`]
+    /// (a real device's differ by about 1 %: read them from the device for measurement work).
+    pub fn kinect_v2_typical() -> Self {
+        let c = CameraModel::kinect_v2_depth();
+        let d = c.distortion;
+        Self {
+            fx: c.fx as f32,
+            fy: c.fy as f32,
+            cx: c.cx as f32,
+            cy: c.cy as f32,
+            k1: d.k1 as f32,
+            k2: d.k2 as f32,
+            k3: d.k3 as f32,
+            p1: d.p1 as f32,
+            p2: d.p2 as f32,
+        }
+    }
+
     /// The depth camera as a [`CameraModel`] (512x424).
     pub fn camera(&self) -> CameraModel {
         CameraModel {
@@ -325,26 +343,22 @@ impl Freenect2Registration {
         let c = &self.color;
         let mx = (mx - self.ir.cx) * FREENECT2_DEPTH_Q;
         let my = (my - self.ir.cy) * FREENECT2_DEPTH_Q;
-        let wx = (mx * mx * mx * c.mx_x3y0)
-            + (my * my * my * c.mx_x0y3)
-            + (mx * mx * my * c.mx_x2y1)
-            + (my * my * mx * c.mx_x1y2)
-            + (mx * mx * c.mx_x2y0)
-            + (my * my * c.mx_x0y2)
-            + (mx * my * c.mx_x1y1)
-            + (mx * c.mx_x1y0)
-            + (my * c.mx_x0y1)
-            + c.mx_x0y0;
-        let wy = (mx * mx * mx * c.my_x3y0)
-            + (my * my * my * c.my_x0y3)
-            + (mx * mx * my * c.my_x2y1)
-            + (my * my * mx * c.my_x1y2)
-            + (mx * mx * c.my_x2y0)
-            + (my * my * c.my_x0y2)
-            + (mx * my * c.my_x1y1)
-            + (mx * c.my_x1y0)
-            + (my * c.my_x0y1)
-            + c.my_x0y0;
+        let wx = cubic(
+            [
+                c.mx_x3y0, c.mx_x0y3, c.mx_x2y1, c.mx_x1y2, c.mx_x2y0, c.mx_x0y2, c.mx_x1y1,
+                c.mx_x1y0, c.mx_x0y1, c.mx_x0y0,
+            ],
+            mx,
+            my,
+        );
+        let wy = cubic(
+            [
+                c.my_x3y0, c.my_x0y3, c.my_x2y1, c.my_x1y2, c.my_x2y0, c.my_x0y2, c.my_x1y1,
+                c.my_x1y0, c.my_x0y1, c.my_x0y0,
+            ],
+            mx,
+            my,
+        );
         let rx = (wx / (c.fx * FREENECT2_COLOR_Q)) - (c.shift_m / c.shift_d);
         let ry = (wy / FREENECT2_COLOR_Q) + c.cy;
         (rx, ry)
@@ -487,21 +501,34 @@ impl Freenect2Registration {
     }
 }
 
+/// The cubic of libfreenect2's depth-to-colour map, coefficients in the order
+/// `x3y0 x0y3 x2y1 x1y2 x2y0 x0y2 x1y1 x1y0 x0y1 x0y0`, summed in libfreenect2's order (which
+/// matters in `f32`).
+#[inline]
+fn cubic(c: [f32; 10], mx: f32, my: f32) -> f32 {
+    (mx * mx * mx * c[0])
+        + (my * my * my * c[1])
+        + (mx * mx * my * c[2])
+        + (my * my * mx * c[3])
+        + (mx * mx * c[4])
+        + (my * my * c[5])
+        + (mx * my * c[6])
+        + (mx * c[7])
+        + (my * c[8])
+        + c[9]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// Distortion-free IR parameters, so that pinhole comparisons are exact.
     fn ir() -> Freenect2IrParams {
         Freenect2IrParams {
-            fx: 365.5,
-            fy: 365.5,
-            cx: 256.0,
-            cy: 207.0,
             k1: 0.0,
             k2: 0.0,
             k3: 0.0,
-            p1: 0.0,
-            p2: 0.0,
+            ..Freenect2IrParams::kinect_v2_typical()
         }
     }
 

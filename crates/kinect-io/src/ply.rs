@@ -43,6 +43,22 @@ struct Element {
     properties: Vec<Property>,
 }
 
+impl Element {
+    /// The error for data that ends after `found` of this element's items.
+    fn truncated(&self, path: &Path, found: usize) -> KinectError {
+        KinectError::CountMismatch {
+            path: path.to_path_buf(),
+            what: if self.name == "vertex" {
+                "vertices"
+            } else {
+                "elements"
+            },
+            declared: self.count,
+            found,
+        }
+    }
+}
+
 fn scalar_type(name: &str) -> Option<Scalar> {
     Some(match name {
         "char" | "int8" => Scalar::I8,
@@ -222,16 +238,7 @@ fn parse_ply_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
             for element in &elements {
                 for index in 0..element.count {
                     let Some(line) = lines.next() else {
-                        return Err(KinectError::CountMismatch {
-                            path: path.to_path_buf(),
-                            what: if element.name == "vertex" {
-                                "vertices"
-                            } else {
-                                "elements"
-                            },
-                            declared: element.count,
-                            found: index,
-                        });
+                        return Err(element.truncated(path, index));
                     };
                     let mut tokens = line.split_whitespace();
                     values.clear();
@@ -292,16 +299,7 @@ fn parse_ply_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
             for element in &elements {
                 for index in 0..element.count {
                     values.clear();
-                    let truncated = || KinectError::CountMismatch {
-                        path: path.to_path_buf(),
-                        what: if element.name == "vertex" {
-                            "vertices"
-                        } else {
-                            "elements"
-                        },
-                        declared: element.count,
-                        found: index,
-                    };
+                    let truncated = || element.truncated(path, index);
                     for property in &element.properties {
                         match property {
                             Property::Scalar(_, ty) => {

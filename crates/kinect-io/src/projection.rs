@@ -332,18 +332,6 @@ impl ProjectionImage {
         let y0 = (pixel.y - r).ceil().max(0.0);
         let y1 = (pixel.y + r).floor().min(h - 1.0);
         scratch.clear();
-        if x0 > x1 || y0 > y1 {
-            // Also covers a radius smaller than the distance to any pixel centre: fall back to
-            // the pixel holding the position.
-            let (u, v) = self.camera.pixel_at(pixel)?;
-            let i = self.point_index(u, v)?;
-            return cloud
-                .points()
-                .get(i)
-                .copied()
-                .flatten()
-                .map(|p| p.position_m);
-        }
         let mut y = y0;
         while y <= y1 {
             let mut x = x0;
@@ -360,6 +348,8 @@ impl ProjectionImage {
             y += 1.0;
         }
         if scratch.is_empty() {
+            // No pixel centre within the radius shows a point (or the radius is below the
+            // distance to any centre): the point of the pixel holding the position, if any.
             let (u, v) = self.camera.pixel_at(pixel)?;
             let i = self.point_index(u, v)?;
             return cloud
@@ -463,6 +453,17 @@ mod tests {
     use crate::depth::DepthImage;
     use approx::assert_relative_eq;
 
+    /// The scene's cloud seen from its own depth camera.
+    fn own_view(cloud: &TexturedCloud, calibration: &Calibration) -> ProjectionImage {
+        project_cloud(
+            cloud,
+            &calibration.depth_camera,
+            &Isometry3::identity(),
+            &ProjectionConfig::default(),
+        )
+        .expect("valid")
+    }
+
     /// A wall at 2 m with a 40x40 px square patch at 1 m.
     fn scene() -> (TexturedCloud, Calibration) {
         let calibration = Calibration::kinect_v2();
@@ -502,13 +503,7 @@ mod tests {
     #[test]
     fn own_view_fast_path_equals_the_general_path() {
         let (cloud, calibration) = scene();
-        let fast = project_cloud(
-            &cloud,
-            &calibration.depth_camera,
-            &Isometry3::identity(),
-            &ProjectionConfig::default(),
-        )
-        .expect("valid");
+        let fast = own_view(&cloud, &calibration);
         // A camera equal in all but a negligible principal-point shift takes the general path.
         let mut nudged = calibration.depth_camera;
         nudged.cx += 1e-9;
@@ -563,13 +558,7 @@ mod tests {
     #[test]
     fn lift_stays_on_the_near_surface_at_an_edge() {
         let (cloud, calibration) = scene();
-        let image = project_cloud(
-            &cloud,
-            &calibration.depth_camera,
-            &Isometry3::identity(),
-            &ProjectionConfig::default(),
-        )
-        .expect("valid");
+        let image = own_view(&cloud, &calibration);
         // On the patch's edge column: half the neighbourhood is wall at 2 m.
         let p = image
             .lift(&cloud, &Point2::new(230.2, 200.0), &LiftConfig::default())
@@ -598,13 +587,7 @@ mod tests {
     #[test]
     fn lift_of_a_pixel_centre_returns_that_point_on_a_plane() {
         let (cloud, calibration) = scene();
-        let image = project_cloud(
-            &cloud,
-            &calibration.depth_camera,
-            &Isometry3::identity(),
-            &ProjectionConfig::default(),
-        )
-        .expect("valid");
+        let image = own_view(&cloud, &calibration);
         let p = image
             .lift(&cloud, &Point2::new(100.0, 300.0), &LiftConfig::default())
             .expect("wall");

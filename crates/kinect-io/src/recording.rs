@@ -174,28 +174,14 @@ impl Recording {
             })?;
         let color = read_color_image(&entry.color_path)?;
         let depth = read_depth_image(&entry.depth_path, self.calibration.depth_unit_m)?;
-        let check = |path: &Path, cam: &crate::CameraModel, w: u32, h: u32| {
-            if (cam.width, cam.height) == (w, h) {
-                Ok(())
-            } else {
-                Err(KinectError::SizeMismatch {
-                    what: format!("{} vs. the calibration", path.display()),
-                    expected_width: cam.width,
-                    expected_height: cam.height,
-                    found_width: w,
-                    found_height: h,
-                })
-            }
-        };
-        check(
-            &entry.color_path,
-            &self.calibration.color_camera,
+        let against = |path: &Path| format!("{} vs. the calibration", path.display());
+        self.calibration.color_camera.check_image_size(
+            &against(&entry.color_path),
             color.width(),
             color.height(),
         )?;
-        check(
-            &entry.depth_path,
-            &self.calibration.depth_camera,
+        self.calibration.depth_camera.check_image_size(
+            &against(&entry.depth_path),
             depth.width(),
             depth.height(),
         )?;
@@ -463,30 +449,17 @@ impl RecordingWriter {
                 ),
             ));
         }
-        for (what, cam, w, h) in [
-            (
-                "colour frame",
-                &self.calibration.color_camera,
-                color.width(),
-                color.height(),
-            ),
-            (
-                "depth frame",
-                &self.calibration.depth_camera,
-                depth.width(),
-                depth.height(),
-            ),
-        ] {
-            if (cam.width, cam.height) != (w, h) {
-                return Err(KinectError::SizeMismatch {
-                    what: format!("{what} vs. the calibration"),
-                    expected_width: cam.width,
-                    expected_height: cam.height,
-                    found_width: w,
-                    found_height: h,
-                });
-            }
-        }
+        let cal = &self.calibration;
+        cal.color_camera.check_image_size(
+            "colour frame vs. the calibration",
+            color.width(),
+            color.height(),
+        )?;
+        cal.depth_camera.check_image_size(
+            "depth frame vs. the calibration",
+            depth.width(),
+            depth.height(),
+        )?;
         let index = self.count;
         let color_name = match self.color_format {
             ColorFormat::Png => format!("color/{index:06}.png"),
