@@ -325,7 +325,12 @@ impl CameraModel {
         if point.z.is_nan() || point.z <= 0.0 {
             return None;
         }
-        let (xd, yd) = self.distortion.apply(point.x / point.z, point.y / point.z);
+        let (x, y) = (point.x / point.z, point.y / point.z);
+        let (xd, yd) = if self.distortion.is_zero() {
+            (x, y)
+        } else {
+            self.distortion.apply(x, y)
+        };
         let pixel = Point2::new(self.fx * xd + self.cx, self.fy * yd + self.cy);
         (pixel.x.is_finite() && pixel.y.is_finite()).then_some(pixel)
     }

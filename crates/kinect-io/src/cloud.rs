@@ -5,7 +5,7 @@
 //! (outside its image, or occluded by a nearer surface) has `rgb: None`.
 
 use image::RgbImage;
-use nalgebra::{Isometry3, Point3};
+use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 
 use crate::calibration::{Calibration, RegistrationModel};
 use crate::camera::CameraModel;
@@ -149,8 +149,8 @@ pub struct OcclusionFilter {
     pub half_width_px: u32,
     /// Half-height of the window in colour pixels (default 1).
     pub half_height_px: u32,
-    /// Relative depth margin: a point further than `(1 + tolerance)` times the nearest depth
-    /// in its window is occluded (default 0.01).
+    /// Relative depth margin: a point at depth `z` is occluded when the nearest depth `z_min`
+    /// in its window has `(z - z_min) / z > tolerance` (libfreenect2's test; default 0.01).
     pub tolerance: f64,
 }
 
@@ -226,7 +226,8 @@ enum Engine {
         /// Undistorted normalised ray per depth pixel; NaN where the distortion cannot be
         /// inverted.
         rays: Vec<[f64; 2]>,
-        depth_to_color: Option<Isometry3<f64>>,
+        /// Depth-to-colour rotation matrix and translation (`None`: already registered).
+        depth_to_color: Option<(Matrix3<f64>, Vector3<f64>)>,
     },
     Freenect2 {
         registration: Box<Freenect2Registration>,
@@ -245,12 +246,18 @@ pub struct CloudBuilder {
     engine: Engine,
     /// Nearest depth per colour pixel (occlusion filter), reused between frames.
     filter_map: MinDepthMap,
-    /// Colour pixel (flat index) of each depth pixel in `candidates`, reused between frames.
-    color_index: Vec<u32>,
-    /// Depth pixels whose point projects onto the colour image, reused between frames.
-    candidates: Vec<u32>,
-    /// Occlusion-map cell and quantised colour-camera depth of each point, reused.
-    color_cell: Vec<(u32, u32, u32)>,
+    /// The points that project onto the colour image, reused between frames.
+    candidates: Vec<Candidate>,
+}
+
+/// A point that projects onto the colour image: its depth pixel (flat index), its colour
+/// pixel, and its quantised depth in the colour camera (for the occlusion filter).
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    index: u32,
+    color_u: u32,
+    color_v: u32,
+    depth_q: u32,
 }
 
 /// Depth resolution of the occlusion filter's map: 0.1 mm (24 bits then reach 1.6 km), far
@@ -267,8 +274,15 @@ struct MinDepthMap {
     cells: Vec<u32>,
     width: usize,
     height: usize,
+    /// The same over blocks of `2^COARSE_SHIFT` pixels square: small enough to stay in cache,
+    /// it answers "nothing nearer anywhere near" for most points without touching `cells`.
+    coarse: Vec<u32>,
+    coarse_width: usize,
     age: u32,
 }
+
+/// Coarse blocks of the occlusion map are 8x8 colour pixels.
+const COARSE_SHIFT: u32 = 3;
 
 impl MinDepthMap {
     fn begin_frame(&mut self, width: usize, height: usize) {
@@ -276,6 +290,12 @@ impl MinDepthMap {
             self.cells.clear();
             self.cells.resize(width * height, u32::MAX);
             (self.width, self.height) = (width, height);
+            self.coarse_width = width.div_ceil(1 << COARSE_SHIFT);
+            self.coarse.clear();
+            self.coarse.resize(
+                self.coarse_width * height.div_ceil(1 << COARSE_SHIFT),
+                u32::MAX,
+            );
             self.age = (1 << (32 - FILTER_DEPTH_BITS)) - 1;
         }
         self.age -= 1;
@@ -288,26 +308,53 @@ impl MinDepthMap {
         (z_m / FILTER_DEPTH_QUANTUM_M + 0.5).min(f64::from((1u32 << FILTER_DEPTH_BITS) - 1)) as u32
     }
 
-    /// Keep the nearer of the cell's depth and quantised depth `q`.
+    /// Keep the nearer of the cell's depth and quantised depth `q` at pixel `(x, y)`.
     #[inline]
     fn lower(&mut self, (x, y): (usize, usize), q: u32) {
         let key = (self.age << FILTER_DEPTH_BITS) | q;
         let cell = &mut self.cells[y * self.width + x];
         *cell = (*cell).min(key);
+        let block = &mut self.coarse[(y >> COARSE_SHIFT) * self.coarse_width + (x >> COARSE_SHIFT)];
+        *block = (*block).min(key);
     }
 
-    /// The nearest quantised depth of this frame within `(hw, hh)` pixels of `(x, y)`.
+    /// Is a point of quantised depth `own` at pixel `(x, y)` behind the nearest depth of this
+    /// frame within `(hw, hh)` pixels by more than `tolerance` (relative)?
     #[inline]
-    fn nearest(&self, (x, y): (usize, usize), (hw, hh): (usize, usize)) -> Option<u32> {
+    fn occluded(
+        &self,
+        (x, y): (usize, usize),
+        (hw, hh): (usize, usize),
+        own: u32,
+        tolerance: f64,
+    ) -> bool {
+        let limit = f64::from(own) * (1.0 - tolerance);
         let (x0, x1) = (x.saturating_sub(hw), (x + hw).min(self.width - 1));
+        let (y0, y1) = (y.saturating_sub(hh), (y + hh).min(self.height - 1));
+        let nearer = |m: u32| {
+            m >> FILTER_DEPTH_BITS == self.age
+                && f64::from(m & ((1 << FILTER_DEPTH_BITS) - 1)) < limit
+        };
+        // The blocks covering the window hold a lower bound of its nearest depth.
         let mut m = u32::MAX;
-        for row in y.saturating_sub(hh)..=(y + hh).min(self.height - 1) {
+        for by in (y0 >> COARSE_SHIFT)..=(y1 >> COARSE_SHIFT) {
+            let start = by * self.coarse_width;
+            for &block in &self.coarse[start + (x0 >> COARSE_SHIFT)..=start + (x1 >> COARSE_SHIFT)]
+            {
+                m = m.min(block);
+            }
+        }
+        if !nearer(m) {
+            return false;
+        }
+        let mut m = u32::MAX;
+        for row in y0..=y1 {
             let start = row * self.width;
             for &cell in &self.cells[start + x0..=start + x1] {
                 m = m.min(cell);
             }
         }
-        (m >> FILTER_DEPTH_BITS == self.age).then_some(m & ((1 << FILTER_DEPTH_BITS) - 1))
+        nearer(m)
     }
 }
 
@@ -341,7 +388,12 @@ impl CloudBuilder {
                     .collect(),
                 depth_to_color: match calibration.registration {
                     RegistrationModel::AlreadyRegistered => None,
-                    _ => calibration.depth_to_color()?,
+                    _ => calibration.depth_to_color()?.map(|t| {
+                        (
+                            t.rotation.to_rotation_matrix().into_inner(),
+                            t.translation.vector,
+                        )
+                    }),
                 },
             },
         };
@@ -350,8 +402,6 @@ impl CloudBuilder {
             config,
             engine,
             filter_map: MinDepthMap::default(),
-            color_index: vec![0; calibration.depth_camera.pixel_count()],
-            color_cell: vec![(0, 0, 0); calibration.depth_camera.pixel_count()],
             candidates: Vec::with_capacity(calibration.depth_camera.pixel_count()),
         })
     }
@@ -468,8 +518,8 @@ impl CloudBuilder {
                     // Colour pixel of this point.
                     let (cu, cv, zc) = match depth_to_color {
                         None => ((i % w) as i64, (i / w) as i64, z),
-                        Some(t) => {
-                            let pc = *t * p;
+                        Some((r, t)) => {
+                            let pc = Point3::from(*r * p.coords + *t);
                             let Some(px) = ccam.project(&pc) else {
                                 continue;
                             };
@@ -481,20 +531,20 @@ impl CloudBuilder {
                             (cu as i64, cv as i64, pc.z)
                         }
                     };
-                    self.color_index[i] = (cv * cw + cu) as u32;
-                    self.candidates.push(i as u32);
+                    let depth_q = MinDepthMap::quantise(zc);
                     if filter.is_some() {
-                        let cell = (cu as usize, cv as usize);
-                        let q = MinDepthMap::quantise(zc);
-                        self.filter_map.lower(cell, q);
-                        self.color_cell[i] = (cell.0 as u32, cell.1 as u32, q);
+                        self.filter_map.lower((cu as usize, cv as usize), depth_q);
                     }
+                    self.candidates.push(Candidate {
+                        index: i as u32,
+                        color_u: cu as u32,
+                        color_v: cv as u32,
+                        depth_q,
+                    });
                 }
                 let raw = color.as_raw();
-                for &i in &self.candidates {
-                    let i = i as usize;
-                    let ci = self.color_index[i];
-                    let Some(point) = cloud.points[i].as_mut() else {
+                for c in &self.candidates {
+                    let Some(point) = cloud.points[c.index as usize].as_mut() else {
                         continue;
                     };
                     if filter.is_some() {
@@ -502,17 +552,17 @@ impl CloudBuilder {
                         // point's colour pixel (libfreenect2's test, which spreads each depth
                         // over the window where this gathers it: the same for a symmetric
                         // window).
-                        let (x, y, own) = self.color_cell[i];
-                        if let Some(nearest) = self
-                            .filter_map
-                            .nearest((x as usize, y as usize), filter_half)
-                            && f64::from(own - nearest.min(own)) > filter_tolerance * f64::from(own)
-                        {
+                        if self.filter_map.occluded(
+                            (c.color_u as usize, c.color_v as usize),
+                            filter_half,
+                            c.depth_q,
+                            filter_tolerance,
+                        ) {
                             continue;
                         }
                     }
-                    let c = 3 * ci as usize;
-                    point.rgb = Some([raw[c], raw[c + 1], raw[c + 2]]);
+                    let at = 3 * (c.color_v as usize * cw as usize + c.color_u as usize);
+                    point.rgb = Some([raw[at], raw[at + 1], raw[at + 2]]);
                 }
             }
             Engine::Freenect2 {
