@@ -578,6 +578,19 @@ mod tests {
     }
 
     #[test]
+    fn nan_and_zero_depth_give_no_point_and_no_colour() {
+        let ir = ir();
+        let color = Freenect2ColorParams::from_pinhole_baseline(&ir, 1081.37, 959.5, 539.5, 52.0);
+        let mut reg = Freenect2Registration::new(ir, color).expect("valid");
+        let mut depth = vec![f32::NAN; W * H];
+        depth[..W].fill(0.0);
+        let colour = RgbImage::from_pixel(CW as u32, CH as u32, image::Rgb([1, 2, 3]));
+        let frame = reg.apply(&depth, &colour, true).expect("sizes");
+        assert!(frame.undistorted_mm.iter().all(|&z| z == 0.0));
+        assert!(frame.registered.iter().all(Option::is_none));
+    }
+
+    #[test]
     fn wrong_sizes_are_errors() {
         let ir = ir();
         let color = Freenect2ColorParams::from_pinhole_baseline(&ir, 1081.37, 959.5, 539.5, 52.0);

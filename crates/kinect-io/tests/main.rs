@@ -14,8 +14,23 @@ use kinect_io::*;
 use nalgebra::{Isometry3, Point2, Point3};
 use proptest::prelude::*;
 
-/// A fresh, empty directory under the system's temporary directory.
-fn temp_dir(tag: &str) -> PathBuf {
+/// A fresh, empty directory under the system's temporary directory, removed when dropped.
+struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn temp_dir(tag: &str) -> TempDir {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
     let dir = std::env::temp_dir().join(format!(
         "kinect-io-test-{}-{tag}-{}",
@@ -24,7 +39,7 @@ fn temp_dir(tag: &str) -> PathBuf {
     ));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
+    TempDir(dir)
 }
 
 /// `../shared/data/kinect`, or `None` (with the reason printed) when it is not there.
@@ -634,6 +649,35 @@ proptest! {
         must_not_panic(parse_pcd(&damage(valid_pcd(false), cut, &flips)));
         let json = Calibration::kinect_v2().to_json().into_bytes();
         must_not_panic(Calibration::from_json(&String::from_utf8_lossy(&damage(json, cut, &flips))));
+    }
+
+    #[test]
+    fn recording_index_readers_survive_random_text(
+        frames in prop::collection::vec(any::<u8>(), 0..300),
+        rgb in prop::collection::vec(any::<u8>(), 0..200),
+        depth in prop::collection::vec(any::<u8>(), 0..200),
+    ) {
+        // Native: a valid calibration with a random frames.csv (after the right header, so the
+        // rows are what gets exercised).
+        let native = temp_dir("frames-fuzz");
+        Calibration::kinect_v2().write_json(&native.join(CALIBRATION_FILE)).expect("write");
+        let mut text = format!("{FRAMES_HEADER}\n").into_bytes();
+        text.extend_from_slice(&frames);
+        std::fs::write(native.join(FRAMES_FILE), text).expect("write");
+        if let Ok(recording) = Recording::open(&native) {
+            for frame in recording.frames() {
+                must_not_panic(frame);
+            }
+        }
+        // TUM: random rgb.txt and depth.txt.
+        let tum = temp_dir("tum-fuzz");
+        std::fs::write(tum.join("rgb.txt"), &rgb).expect("write");
+        std::fs::write(tum.join("depth.txt"), &depth).expect("write");
+        if let Ok(recording) = Recording::open(&tum) {
+            for frame in recording.frames() {
+                must_not_panic(frame);
+            }
+        }
     }
 
     #[test]
