@@ -248,6 +248,8 @@ pub struct CloudBuilder {
     filter_map: MinDepthMap,
     /// The points that project onto the colour image, reused between frames.
     candidates: Vec<Candidate>,
+    /// Positions in `candidates` that the occlusion test's block level could not clear.
+    contested: Vec<u32>,
 }
 
 /// A point that projects onto the colour image: its depth pixel (flat index), its colour
@@ -271,13 +273,16 @@ const FILTER_DEPTH_BITS: u32 = 24;
 /// frame. Saves clearing the map (8 MB at 1920x1080) every frame; the update is branch-free.
 #[derive(Debug, Clone, Default)]
 struct MinDepthMap {
+    /// Per colour pixel; only filled around contested points (see `CloudBuilder::build_into`).
     cells: Vec<u32>,
     width: usize,
     height: usize,
     /// The same over blocks of `2^COARSE_SHIFT` pixels square: small enough to stay in cache,
-    /// it answers "nothing nearer anywhere near" for most points without touching `cells`.
+    /// it answers "nothing nearer anywhere near" for most points without the fine map.
     coarse: Vec<u32>,
     coarse_width: usize,
+    /// Blocks whose fine cells a contested point needs, this frame.
+    needed: Vec<bool>,
     age: u32,
 }
 
@@ -291,14 +296,15 @@ impl MinDepthMap {
             self.cells.resize(width * height, u32::MAX);
             (self.width, self.height) = (width, height);
             self.coarse_width = width.div_ceil(1 << COARSE_SHIFT);
+            let blocks = self.coarse_width * height.div_ceil(1 << COARSE_SHIFT);
             self.coarse.clear();
-            self.coarse.resize(
-                self.coarse_width * height.div_ceil(1 << COARSE_SHIFT),
-                u32::MAX,
-            );
+            self.coarse.resize(blocks, u32::MAX);
+            self.needed.clear();
+            self.needed.resize(blocks, false);
             self.age = (1 << (32 - FILTER_DEPTH_BITS)) - 1;
         }
         self.age -= 1;
+        self.needed.fill(false);
     }
 
     /// Quantised depth (`z_m >= 0`).
@@ -308,45 +314,79 @@ impl MinDepthMap {
         (z_m / FILTER_DEPTH_QUANTUM_M + 0.5).min(f64::from((1u32 << FILTER_DEPTH_BITS) - 1)) as u32
     }
 
-    /// Keep the nearer of the cell's depth and quantised depth `q` at pixel `(x, y)`.
     #[inline]
-    fn lower(&mut self, (x, y): (usize, usize), q: u32) {
-        let key = (self.age << FILTER_DEPTH_BITS) | q;
-        let cell = &mut self.cells[y * self.width + x];
-        *cell = (*cell).min(key);
-        let block = &mut self.coarse[(y >> COARSE_SHIFT) * self.coarse_width + (x >> COARSE_SHIFT)];
-        *block = (*block).min(key);
+    fn key(&self, q: u32) -> u32 {
+        (self.age << FILTER_DEPTH_BITS) | q
     }
 
-    /// Is a point of quantised depth `own` at pixel `(x, y)` behind the nearest depth of this
-    /// frame within `(hw, hh)` pixels by more than `tolerance` (relative)?
     #[inline]
-    fn occluded(
-        &self,
-        (x, y): (usize, usize),
-        (hw, hh): (usize, usize),
-        own: u32,
-        tolerance: f64,
-    ) -> bool {
-        let limit = f64::from(own) * (1.0 - tolerance);
-        let (x0, x1) = (x.saturating_sub(hw), (x + hw).min(self.width - 1));
-        let (y0, y1) = (y.saturating_sub(hh), (y + hh).min(self.height - 1));
-        let nearer = |m: u32| {
-            m >> FILTER_DEPTH_BITS == self.age
-                && f64::from(m & ((1 << FILTER_DEPTH_BITS) - 1)) < limit
-        };
-        // The blocks covering the window hold a lower bound of its nearest depth.
+    fn block(&self, x: usize, y: usize) -> usize {
+        (y >> COARSE_SHIFT) * self.coarse_width + (x >> COARSE_SHIFT)
+    }
+
+    /// Record quantised depth `q` at pixel `(x, y)` in the block level.
+    #[inline]
+    fn lower_coarse(&mut self, (x, y): (usize, usize), q: u32) {
+        let (key, at) = (self.key(q), self.block(x, y));
+        self.coarse[at] = self.coarse[at].min(key);
+    }
+
+    /// Record quantised depth `q` at pixel `(x, y)` in the fine level, if a contested point
+    /// needs its block.
+    #[inline]
+    fn lower_fine_if_needed(&mut self, (x, y): (usize, usize), q: u32) {
+        if self.needed[self.block(x, y)] {
+            let key = self.key(q);
+            let cell = &mut self.cells[y * self.width + x];
+            *cell = (*cell).min(key);
+        }
+    }
+
+    /// The window of `(hw, hh)` pixels around `(x, y)`, clipped: `(x0, x1, y0, y1)`.
+    #[inline]
+    fn window(&self, (x, y): (usize, usize), (hw, hh): (usize, usize)) -> [usize; 4] {
+        [
+            x.saturating_sub(hw),
+            (x + hw).min(self.width - 1),
+            y.saturating_sub(hh),
+            (y + hh).min(self.height - 1),
+        ]
+    }
+
+    /// Is `m` a depth of this frame nearer than `limit` (quantised units)?
+    #[inline]
+    fn nearer(&self, m: u32, limit: f64) -> bool {
+        m >> FILTER_DEPTH_BITS == self.age && f64::from(m & ((1 << FILTER_DEPTH_BITS) - 1)) < limit
+    }
+
+    /// Step 1 of the test: `false` when no depth of this frame in the blocks covering the
+    /// window is nearer than `limit` (then the point is not occluded); `true` when the fine
+    /// level must decide, in which case the blocks are marked as needed.
+    #[inline]
+    fn contested(&mut self, centre: (usize, usize), half: (usize, usize), limit: f64) -> bool {
+        let [x0, x1, y0, y1] = self.window(centre, half);
+        let (bx0, bx1) = (x0 >> COARSE_SHIFT, x1 >> COARSE_SHIFT);
         let mut m = u32::MAX;
         for by in (y0 >> COARSE_SHIFT)..=(y1 >> COARSE_SHIFT) {
             let start = by * self.coarse_width;
-            for &block in &self.coarse[start + (x0 >> COARSE_SHIFT)..=start + (x1 >> COARSE_SHIFT)]
-            {
+            for &block in &self.coarse[start + bx0..=start + bx1] {
                 m = m.min(block);
             }
         }
-        if !nearer(m) {
+        if !self.nearer(m, limit) {
             return false;
         }
+        for by in (y0 >> COARSE_SHIFT)..=(y1 >> COARSE_SHIFT) {
+            let start = by * self.coarse_width;
+            self.needed[start + bx0..=start + bx1].fill(true);
+        }
+        true
+    }
+
+    /// Step 2: is a depth of this frame nearer than `limit` within the window (fine level)?
+    #[inline]
+    fn occluded(&self, centre: (usize, usize), half: (usize, usize), limit: f64) -> bool {
+        let [x0, x1, y0, y1] = self.window(centre, half);
         let mut m = u32::MAX;
         for row in y0..=y1 {
             let start = row * self.width;
@@ -354,7 +394,7 @@ impl MinDepthMap {
                 m = m.min(cell);
             }
         }
-        nearer(m)
+        self.nearer(m, limit)
     }
 }
 
@@ -403,6 +443,7 @@ impl CloudBuilder {
             engine,
             filter_map: MinDepthMap::default(),
             candidates: Vec::with_capacity(calibration.depth_camera.pixel_count()),
+            contested: Vec::new(),
         })
     }
 
@@ -533,7 +574,8 @@ impl CloudBuilder {
                     };
                     let depth_q = MinDepthMap::quantise(zc);
                     if filter.is_some() {
-                        self.filter_map.lower((cu as usize, cv as usize), depth_q);
+                        self.filter_map
+                            .lower_coarse((cu as usize, cv as usize), depth_q);
                     }
                     self.candidates.push(Candidate {
                         index: i as u32,
@@ -542,27 +584,38 @@ impl CloudBuilder {
                         depth_q,
                     });
                 }
+                // Colours. The occlusion test (libfreenect2's: the nearest depth the colour
+                // camera sees within the window around the point's colour pixel, which
+                // libfreenect2 spreads over the window and this gathers, the same for a
+                // symmetric window) runs in two steps: the block level clears most points;
+                // the fine level is filled and asked only around the contested ones.
                 let raw = color.as_raw();
-                for c in &self.candidates {
-                    let Some(point) = cloud.points[c.index as usize].as_mut() else {
-                        continue;
-                    };
-                    if filter.is_some() {
-                        // The nearest surface the colour camera sees in the window around this
-                        // point's colour pixel (libfreenect2's test, which spreads each depth
-                        // over the window where this gathers it: the same for a symmetric
-                        // window).
-                        if self.filter_map.occluded(
-                            (c.color_u as usize, c.color_v as usize),
-                            filter_half,
-                            c.depth_q,
-                            filter_tolerance,
-                        ) {
-                            continue;
+                let paint = |cloud: &mut TexturedCloud, c: &Candidate| {
+                    if let Some(point) = cloud.points[c.index as usize].as_mut() {
+                        let at = 3 * (c.color_v as usize * cw as usize + c.color_u as usize);
+                        point.rgb = Some([raw[at], raw[at + 1], raw[at + 2]]);
+                    }
+                };
+                let limit = |c: &Candidate| f64::from(c.depth_q) * (1.0 - filter_tolerance);
+                let at = |c: &Candidate| (c.color_u as usize, c.color_v as usize);
+                self.contested.clear();
+                for (k, c) in self.candidates.iter().enumerate() {
+                    if filter.is_some() && self.filter_map.contested(at(c), filter_half, limit(c)) {
+                        self.contested.push(k as u32);
+                    } else {
+                        paint(cloud, c);
+                    }
+                }
+                if !self.contested.is_empty() {
+                    for c in &self.candidates {
+                        self.filter_map.lower_fine_if_needed(at(c), c.depth_q);
+                    }
+                    for &k in &self.contested {
+                        let c = &self.candidates[k as usize];
+                        if !self.filter_map.occluded(at(c), filter_half, limit(c)) {
+                            paint(cloud, c);
                         }
                     }
-                    let at = 3 * (c.color_v as usize * cw as usize + c.color_u as usize);
-                    point.rgb = Some([raw[at], raw[at + 1], raw[at + 2]]);
                 }
             }
             Engine::Freenect2 {
@@ -730,10 +783,16 @@ mod tests {
         let frame = synth::render(&synth::demo_tree(3), &config).expect("renders");
         let calibration = &config.calibration;
         let filter = OcclusionFilter::default();
-        let cloud = CloudBuilder::new(calibration, CloudConfig::default())
-            .expect("ok")
-            .build(&frame.depth, &frame.color)
-            .expect("ok");
+        let mut builder = CloudBuilder::new(calibration, CloudConfig::default()).expect("ok");
+        // A first frame leaves stale cells behind; the second must not be misled by them.
+        let d = calibration.depth_camera;
+        let near_wall =
+            DepthImage::new(d.width, d.height, 0.001, vec![900; d.pixel_count()]).expect("size");
+        builder.build(&near_wall, &frame.color).expect("ok");
+        let cloud = builder.build(&frame.depth, &frame.color).expect("ok");
+        // Both steps of the test ran: some points were contested and went to the fine level.
+        assert!(!builder.contested.is_empty());
+        assert!(builder.contested.len() < builder.candidates.len());
         // Reference: every point's colour pixel and colour-camera depth, then for each point
         // the nearest depth of any point whose colour pixel is within the window.
         let t = calibration.depth_to_color().expect("ok").expect("rigid");
