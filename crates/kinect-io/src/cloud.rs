@@ -15,6 +15,7 @@ use crate::freenect2::{
     FREENECT2_FILTER_HALF_HEIGHT_PX, FREENECT2_FILTER_HALF_WIDTH_PX, FREENECT2_FILTER_TOLERANCE,
     Freenect2Frame, Freenect2Registration,
 };
+use crate::zbuffer::{self, DEPTH_BITS};
 
 /// One point of a textured cloud.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -262,11 +263,6 @@ struct Candidate {
     depth_q: u32,
 }
 
-/// Depth resolution of the occlusion filter's map: 0.1 mm (24 bits then reach 1.6 km), far
-/// below the filter's 1 % tolerance.
-const FILTER_DEPTH_QUANTUM_M: f64 = 1e-4;
-const FILTER_DEPTH_BITS: u32 = 24;
-
 /// A minimum-depth map over the colour image that needs no clearing between frames. A cell is
 /// `(age << 24) | depth` (depth quantised to 0.1 mm): cells from earlier frames have a larger
 /// age, so one unsigned `min` both replaces stale cells and keeps the nearest depth of this
@@ -301,22 +297,15 @@ impl MinDepthMap {
             self.coarse.resize(blocks, u32::MAX);
             self.needed.clear();
             self.needed.resize(blocks, false);
-            self.age = (1 << (32 - FILTER_DEPTH_BITS)) - 1;
+            self.age = (1 << (32 - DEPTH_BITS)) - 1;
         }
         self.age -= 1;
         self.needed.fill(false);
     }
 
-    /// Quantised depth (`z_m >= 0`).
-    #[inline]
-    fn quantise(z_m: f64) -> u32 {
-        // Truncating after adding 0.5 rounds half up for non-negative values.
-        (z_m / FILTER_DEPTH_QUANTUM_M + 0.5).min(f64::from((1u32 << FILTER_DEPTH_BITS) - 1)) as u32
-    }
-
     #[inline]
     fn key(&self, q: u32) -> u32 {
-        (self.age << FILTER_DEPTH_BITS) | q
+        (self.age << DEPTH_BITS) | q
     }
 
     #[inline]
@@ -356,7 +345,7 @@ impl MinDepthMap {
     /// Is `m` a depth of this frame nearer than `limit` (quantised units)?
     #[inline]
     fn nearer(&self, m: u32, limit: f64) -> bool {
-        m >> FILTER_DEPTH_BITS == self.age && f64::from(m & ((1 << FILTER_DEPTH_BITS) - 1)) < limit
+        m >> DEPTH_BITS == self.age && f64::from(m & ((1 << DEPTH_BITS) - 1)) < limit
     }
 
     /// Step 1 of the test: `false` when no depth of this frame in the blocks covering the
@@ -572,7 +561,7 @@ impl CloudBuilder {
                             (cu as i64, cv as i64, pc.z)
                         }
                     };
-                    let depth_q = MinDepthMap::quantise(zc);
+                    let depth_q = zbuffer::quantise(zc);
                     if filter.is_some() {
                         self.filter_map
                             .lower_coarse((cu as usize, cv as usize), depth_q);

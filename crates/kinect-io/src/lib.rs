@@ -65,6 +65,7 @@ mod projection;
 mod recording;
 mod scalar;
 pub mod synth;
+mod zbuffer;
 
 pub use calibration::{
     CALIBRATION_FORMAT, CALIBRATION_VERSION, Calibration, Extrinsics, KINECT_V2_BASELINE_M,

@@ -9,6 +9,7 @@ use nalgebra::{Isometry3, Point2, Point3};
 use crate::camera::CameraModel;
 use crate::cloud::TexturedCloud;
 use crate::error::{KinectError, Result};
+use crate::zbuffer;
 
 /// Largest splat half-size in pixels that [`Splat::Auto`] uses (a 13x13 square): beyond that a
 /// cloud is being viewed from far closer than it was captured, and holes are the honest answer.
@@ -105,27 +106,32 @@ impl LiftConfig {
 
 /// A textured cloud seen from a camera: the RGB image, and per pixel the index of the cloud
 /// point it shows and that point's depth in the projection camera.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct ProjectionImage {
     camera: CameraModel,
     cloud_to_camera: Isometry3<f64>,
     image: RgbImage,
-    /// Per pixel: the shown point's depth (`f32` bits, high half) and index (low half), or
-    /// [`EMPTY`]. Depths are positive, so their bits order as the depths do and the z-test is
-    /// one integer comparison.
+    /// Per pixel: `age (8 bits) | depth (24 bits, 0.1 mm) | point index (32 bits)`. A key of
+    /// an earlier render has a larger age, so one unsigned `min` is the z-test and replaces
+    /// stale keys alike, and the buffer (16 MB at 1920x1080) is never cleared.
     keys: Vec<u64>,
+    age: u64,
 }
 
-const EMPTY: u64 = u64::MAX;
+const KEY_AGE_SHIFT: u32 = 32 + zbuffer::DEPTH_BITS;
 
-#[inline]
-fn key_index(key: u64) -> u32 {
-    key as u32
-}
+impl ProjectionImage {
+    #[inline]
+    fn key(&self, z_m: f64, index: usize) -> u64 {
+        (self.age << KEY_AGE_SHIFT) | (u64::from(zbuffer::quantise(z_m)) << 32) | index as u64
+    }
 
-#[inline]
-fn key_depth(key: u64) -> f32 {
-    f32::from_bits((key >> 32) as u32)
+    /// `(depth in metres, point index)` of a key of this render.
+    #[inline]
+    fn decode(&self, key: u64) -> Option<(f64, u32)> {
+        (key >> KEY_AGE_SHIFT == self.age)
+            .then(|| (zbuffer::dequantise((key >> 32) as u32), key as u32))
+    }
 }
 
 /// Splat `cloud` onto `camera`, placed by `cloud_to_camera` (the transform from the cloud's
@@ -147,6 +153,7 @@ pub fn project_cloud(
         cloud_to_camera: *cloud_to_camera,
         image: RgbImage::new(camera.width, camera.height),
         keys: Vec::new(),
+        age: 0,
     };
     out.render(cloud, config)?;
     Ok(out)
@@ -173,8 +180,12 @@ impl ProjectionImage {
         }
         let cam = self.camera;
         let n = cam.pixel_count();
-        self.keys.clear();
-        self.keys.resize(n, EMPTY);
+        if self.keys.len() != n || self.age == 0 {
+            self.keys.clear();
+            self.keys.resize(n, u64::MAX);
+            self.age = (1 << (64 - KEY_AGE_SHIFT)) - 1;
+        }
+        self.age -= 1;
         let (w, h) = (i64::from(cam.width), i64::from(cam.height));
         let source = cloud.source_camera();
         let source_f = 0.5 * (source.fx + source.fy);
@@ -192,7 +203,7 @@ impl ProjectionImage {
             for (i, p) in cloud.iter_valid() {
                 let z = (self.cloud_to_camera * p.position_m).z;
                 if z > 0.0 {
-                    self.keys[i] = (u64::from((z as f32).to_bits()) << 32) | i as u64;
+                    self.keys[i] = self.key(z, i);
                 }
             }
         }
@@ -223,7 +234,7 @@ impl ProjectionImage {
                 continue;
             }
             let (cu, cv) = (floor_small(fu), floor_small(fv));
-            let key = (u64::from((pc.z as f32).to_bits()) << 32) | i as u64;
+            let key = self.key(pc.z, i);
             let (x0, x1) = (
                 (cu - radius).max(0) as usize,
                 (cu + radius).min(w - 1) as usize,
@@ -236,14 +247,14 @@ impl ProjectionImage {
             }
         }
         let points = cloud.points();
+        let age = self.age;
         for (px, &key) in self.image.pixels_mut().zip(self.keys.iter()) {
-            px.0 = if key == EMPTY {
+            px.0 = if key >> KEY_AGE_SHIFT != age {
                 config.background_rgb
             } else {
                 points
-                    .get(key_index(key) as usize)
-                    .copied()
-                    .flatten()
+                    .get(key as u32 as usize)
+                    .and_then(|p| p.as_ref())
                     .and_then(|p| p.rgb)
                     .unwrap_or(config.uncolored_rgb)
             };
@@ -273,7 +284,7 @@ impl ProjectionImage {
             return None;
         }
         let key = self.keys[v as usize * self.camera.width as usize + u as usize];
-        (key != EMPTY).then_some(key_index(key) as usize)
+        self.decode(key).map(|(_, i)| i as usize)
     }
 
     /// Depth (metres, along the projection camera's axis) of the point shown at `(u, v)`.
@@ -282,12 +293,15 @@ impl ProjectionImage {
             return None;
         }
         let key = self.keys[v as usize * self.camera.width as usize + u as usize];
-        (key != EMPTY).then(|| f64::from(key_depth(key)))
+        self.decode(key).map(|(z, _)| z)
     }
 
     /// Number of pixels that show a point.
     pub fn covered_pixels(&self) -> usize {
-        self.keys.iter().filter(|&&k| k != EMPTY).count()
+        self.keys
+            .iter()
+            .filter(|&&k| k >> KEY_AGE_SHIFT == self.age)
+            .count()
     }
 
     /// Lift a sub-pixel position of this image to a 3D point of `cloud` (the cloud this image
@@ -319,7 +333,7 @@ impl ProjectionImage {
         cloud: &TexturedCloud,
         pixel: &Point2<f64>,
         config: &LiftConfig,
-        scratch: &mut Vec<(f64, f32, u32)>,
+        scratch: &mut Vec<(f64, f64, u32)>,
     ) -> Option<Point3<f64>> {
         let finite = pixel.x.is_finite() && pixel.y.is_finite() && config.radius_px.is_finite();
         if !finite || config.radius_px < 0.0 {
@@ -339,8 +353,8 @@ impl ProjectionImage {
                 let d2 = (x - pixel.x).powi(2) + (y - pixel.y).powi(2);
                 if d2 <= r * r {
                     let key = self.keys[y as usize * self.camera.width as usize + x as usize];
-                    if key != EMPTY {
-                        scratch.push((d2, key_depth(key), key_index(key)));
+                    if let Some((z, i)) = self.decode(key) {
+                        scratch.push((d2, z, i));
                     }
                 }
                 x += 1.0;
@@ -362,11 +376,11 @@ impl ProjectionImage {
         let reference = scratch
             .iter()
             .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)))
-            .map(|c| f64::from(c.1))?;
+            .map(|c| c.1)?;
         let tolerance = config
             .depth_tolerance_m
             .max(config.depth_tolerance_ratio * reference);
-        scratch.retain(|c| (f64::from(c.1) - reference).abs() <= tolerance);
+        scratch.retain(|c| (c.1 - reference).abs() <= tolerance);
         scratch.sort_unstable_by_key(|c| c.2);
         scratch.dedup_by_key(|c| c.2);
         // Median depth (along this camera's axis) of the distinct points on the surface.
@@ -498,6 +512,41 @@ mod tests {
         .expect("valid camera");
         assert_eq!(image.point_index(100, 50), Some(50 * 512 + 100));
         assert_eq!(image.covered_pixels(), 512 * 424);
+    }
+
+    #[test]
+    fn an_update_leaves_nothing_of_the_previous_render() {
+        let (cloud, calibration) = scene();
+        let d = calibration.depth_camera;
+        // The same scene with the left half of the depth missing.
+        let mut values = vec![2000u16; d.pixel_count()];
+        for v in 0..d.height as usize {
+            values[v * 512..v * 512 + 256].fill(0);
+        }
+        let depth = DepthImage::new(d.width, d.height, 0.001, values).expect("size");
+        let color = RgbImage::from_pixel(1920, 1080, image::Rgb([200, 10, 10]));
+        let half = CloudBuilder::new(&calibration, CloudConfig::default())
+            .expect("ok")
+            .build(&depth, &color)
+            .expect("ok");
+        let t = calibration.depth_to_color().expect("ok").expect("rigid");
+        for (camera, pose) in [
+            (calibration.depth_camera, Isometry3::identity()),
+            (calibration.color_camera.scaled(0.5).expect("ok"), t),
+        ] {
+            let config = ProjectionConfig::default();
+            let mut image = project_cloud(&cloud, &camera, &pose, &config).expect("valid");
+            image.update(&half, &config).expect("ok");
+            let fresh = project_cloud(&half, &camera, &pose, &config).expect("valid");
+            assert_eq!(image.covered_pixels(), fresh.covered_pixels());
+            assert_eq!(image.image(), fresh.image());
+            for v in (0..camera.height).step_by(7) {
+                for u in (0..camera.width).step_by(5) {
+                    assert_eq!(image.point_index(u, v), fresh.point_index(u, v));
+                    assert_eq!(image.depth_m(u, v), fresh.depth_m(u, v));
+                }
+            }
+        }
     }
 
     #[test]
