@@ -287,7 +287,8 @@ impl ProjectionImage {
         self.decode(key).map(|(_, i)| i as usize)
     }
 
-    /// Depth (metres, along the projection camera's axis) of the point shown at `(u, v)`.
+    /// Depth (metres, along the projection camera's axis, to 0.1 mm) of the point shown at
+    /// `(u, v)`.
     pub fn depth_m(&self, u: u32, v: u32) -> Option<f64> {
         if u >= self.camera.width || v >= self.camera.height {
             return None;
