@@ -489,13 +489,18 @@ mod tests {
                 values[v * 512 + u] = 1000;
             }
         }
+        (cloud_of(values, &calibration), calibration)
+    }
+
+    /// The cloud of millimetre depth `values` with a uniformly red colour image.
+    fn cloud_of(values: Vec<u16>, calibration: &Calibration) -> TexturedCloud {
+        let d = calibration.depth_camera;
         let depth = DepthImage::new(d.width, d.height, 0.001, values).expect("size");
         let color = RgbImage::from_pixel(1920, 1080, image::Rgb([200, 10, 10]));
-        let cloud = CloudBuilder::new(&calibration, CloudConfig::default())
+        CloudBuilder::new(calibration, CloudConfig::default())
             .expect("ok")
             .build(&depth, &color)
-            .expect("ok");
-        (cloud, calibration)
+            .expect("ok")
     }
 
     #[test]
@@ -524,12 +529,7 @@ mod tests {
         for v in 0..d.height as usize {
             values[v * 512..v * 512 + 256].fill(0);
         }
-        let depth = DepthImage::new(d.width, d.height, 0.001, values).expect("size");
-        let color = RgbImage::from_pixel(1920, 1080, image::Rgb([200, 10, 10]));
-        let half = CloudBuilder::new(&calibration, CloudConfig::default())
-            .expect("ok")
-            .build(&depth, &color)
-            .expect("ok");
+        let half = cloud_of(values, &calibration);
         let t = calibration.depth_to_color().expect("ok").expect("rigid");
         for (camera, pose) in [
             (calibration.depth_camera, Isometry3::identity()),

@@ -763,6 +763,12 @@ fn iai_kinect2_folder_is_read() {
 // ---------------------------------------------------------------------------------------------
 // Real data (skipped when ../shared/data is absent).
 
+/// The (upper) median of depths in metres.
+fn median_m(mut z: Vec<f64>) -> f64 {
+    z.sort_by(f64::total_cmp);
+    z[z.len() / 2]
+}
+
 #[test]
 fn real_iai_kinect2_calibrations() {
     let Some(data) = shared_kinect_data() else {
@@ -809,9 +815,7 @@ fn real_tum_frame_gives_the_documented_share_of_valid_points() {
     // PROVENANCE: 33-34 % of each TUM frame is invalid; median valid depth about 1.5 m.
     let share = cloud.valid_count() as f64 / (640.0 * 480.0);
     assert!((0.64..0.68).contains(&share), "valid share {share}");
-    let mut z: Vec<f64> = cloud.iter_valid().map(|(_, p)| p.position_m.z).collect();
-    z.sort_by(f64::total_cmp);
-    let median = z[z.len() / 2];
+    let median = median_m(cloud.iter_valid().map(|(_, p)| p.position_m.z).collect());
     assert!((1.2..1.8).contains(&median), "median depth {median} m");
 }
 
@@ -826,13 +830,13 @@ fn real_pgm_depth_is_big_endian_millimetres() {
     )
     .expect("real PGM reads");
     assert_eq!((depth.width(), depth.height()), (640, 480));
-    let mut z: Vec<f64> = (0..480)
-        .flat_map(|v| (0..640).map(move |u| (u, v)))
-        .filter_map(|(u, v)| depth.depth_m(u, v))
-        .collect();
-    z.sort_by(f64::total_cmp);
+    let median = median_m(
+        (0..480)
+            .flat_map(|v| (0..640).map(move |u| (u, v)))
+            .filter_map(|(u, v)| depth.depth_m(u, v))
+            .collect(),
+    );
     // PROVENANCE: median valid depth 2.7-3.2 m in the joinMap frames.
-    let median = z[z.len() / 2];
     assert!((2.5..3.4).contains(&median), "median depth {median} m");
 }
 
