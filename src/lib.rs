@@ -2,6 +2,8 @@
 
 #[cfg(feature = "kinect-io")]
 pub use kinect_io;
+#[cfg(feature = "meanshift-track")]
+pub use meanshift_track;
 
 pub use image;
 pub use nalgebra;
@@ -10,4 +12,6 @@ pub use nalgebra;
 pub mod prelude {
     #[cfg(feature = "kinect-io")]
     pub use kinect_io::prelude::*;
+    #[cfg(feature = "meanshift-track")]
+    pub use meanshift_track::prelude::*;
 }

@@ -1,0 +1,288 @@
+//! 8-bit colour conversions exactly as OpenCV computes them: RGB/BGR to HSV (`COLOR_RGB2HSV`,
+//! hue 0..179) and RGB to gray (`COLOR_RGB2GRAY`), and `inRange`-style masks.
+//!
+//! OpenCV's 8-bit HSV uses fixed-point arithmetic with 12 fractional bits and division tables;
+//! reproducing that (rather than converting through floating point) is what makes the results
+//! equal bit for bit, which the parity fixtures check. Note that gray pixels (R = G = B) get
+//! hue 0, which is red: a saturation mask is needed to keep them out of a red hue model.
+
+use std::sync::OnceLock;
+
+use image::{GrayImage, ImageBuffer, Rgb, RgbImage};
+
+use crate::error::{Result, TrackError};
+use crate::rect::PixelRect;
+use crate::view::ImageView;
+
+/// Fractional bits of OpenCV's fixed-point HSV (`hsv_shift` in `color_hsv.simd.hpp`).
+const HSV_SHIFT: u32 = 12;
+/// Fractional bits of OpenCV's fixed-point gray conversion of 8-bit images (its vectorised
+/// path, `color_rgb.simd.hpp`, which OpenCV 5 uses for every pixel; the older 14-bit table
+/// gives different results for some colours, which the parity fixture catches).
+const GRAY_SHIFT: u32 = 15;
+/// ITU-R BT.601 luma weights 0.299, 0.587, 0.114 in 15-bit fixed point (`RY15`, `GY15`,
+/// `BY15` in OpenCV).
+const GRAY_WEIGHTS: [u32; 3] = [9798, 19235, 3735];
+/// Hue range of 8-bit HSV: degrees / 2, so 0..179.
+pub const HUE_RANGE: u32 = 180;
+
+/// Order of the three colour channels of an 8-bit image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ChannelOrder {
+    /// Red, green, blue (the `image` crate, PNG, JPEG).
+    #[default]
+    Rgb,
+    /// Blue, green, red (OpenCV's `imread`).
+    Bgr,
+}
+
+struct Tables {
+    /// `round(255 << 12 / v)` (`sdiv_table`).
+    saturation: [i32; 256],
+    /// `round(180 << 12 / (6 diff))` (`hdiv_table180`).
+    hue: [i32; 256],
+}
+
+fn tables() -> &'static Tables {
+    static TABLES: OnceLock<Tables> = OnceLock::new();
+    TABLES.get_or_init(|| {
+        let mut saturation = [0; 256];
+        let mut hue = [0; 256];
+        for i in 1..256 {
+            // OpenCV: saturate_cast<int>(double), i.e. round half to even.
+            saturation[i] = (f64::from(255 << HSV_SHIFT) / i as f64).round_ties_even() as i32;
+            hue[i] = (f64::from(180 << HSV_SHIFT) / (6.0 * i as f64)).round_ties_even() as i32;
+        }
+        Tables { saturation, hue }
+    })
+}
+
+/// HSV of one 8-bit RGB colour, exactly as OpenCV's `COLOR_RGB2HSV`: hue 0..179 (degrees / 2),
+/// saturation and value 0..255.
+pub fn rgb_to_hsv(rgb: [u8; 3]) -> [u8; 3] {
+    hsv_with(tables(), rgb)
+}
+
+#[inline]
+fn hsv_with(t: &Tables, [r, g, b]: [u8; 3]) -> [u8; 3] {
+    let (r, g, b) = (i32::from(r), i32::from(g), i32::from(b));
+    let v = r.max(g).max(b);
+    let vmin = r.min(g).min(b);
+    let diff = v - vmin;
+    let round = 1 << (HSV_SHIFT - 1);
+    let s = (diff * t.saturation[v as usize] + round) >> HSV_SHIFT;
+    let h = if v == r {
+        g - b
+    } else if v == g {
+        b - r + 2 * diff
+    } else {
+        r - g + 4 * diff
+    };
+    let mut h = (h * t.hue[diff as usize] + round) >> HSV_SHIFT;
+    if h < 0 {
+        h += HUE_RANGE as i32;
+    }
+    [h.clamp(0, 255) as u8, s as u8, v as u8]
+}
+
+/// Gray level of one 8-bit RGB colour, exactly as OpenCV's `COLOR_RGB2GRAY`
+/// (0.299 R + 0.587 G + 0.114 B in 15-bit fixed point, rounded).
+pub fn rgb_to_gray([r, g, b]: [u8; 3]) -> u8 {
+    let sum = u32::from(r) * GRAY_WEIGHTS[0]
+        + u32::from(g) * GRAY_WEIGHTS[1]
+        + u32::from(b) * GRAY_WEIGHTS[2]
+        + (1 << (GRAY_SHIFT - 1));
+    (sum >> GRAY_SHIFT) as u8
+}
+
+/// An 8-bit HSV image: channel 0 hue (0..179), 1 saturation, 2 value.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct HsvImage(ImageBuffer<Rgb<u8>, Vec<u8>>);
+
+impl HsvImage {
+    /// Convert a whole 8-bit colour image (`COLOR_RGB2HSV` or `COLOR_BGR2HSV`).
+    pub fn from_image(image: &RgbImage, order: ChannelOrder) -> Self {
+        let mut out = HsvImage(ImageBuffer::new(image.width(), image.height()));
+        convert_into(image, order, image_rect(image), &mut out);
+        out
+    }
+
+    /// An all-zero HSV image, to be filled by [`HsvImage::convert_region`].
+    pub fn new(width: u32, height: u32) -> Self {
+        HsvImage(ImageBuffer::new(width, height))
+    }
+
+    /// Convert only the pixels of `region` (clipped to the image) of `image` into `self`,
+    /// leaving the rest untouched: trackers need HSV only around their markers.
+    ///
+    /// # Errors
+    /// [`TrackError::SizeMismatch`] when `image` and `self` differ in size.
+    pub fn convert_region(
+        &mut self,
+        image: &RgbImage,
+        order: ChannelOrder,
+        region: PixelRect,
+    ) -> Result<()> {
+        if image.dimensions() != self.0.dimensions() {
+            return Err(TrackError::SizeMismatch {
+                what: "HSV target".into(),
+                expected_width: image.width(),
+                expected_height: image.height(),
+                found_width: self.0.width(),
+                found_height: self.0.height(),
+            });
+        }
+        convert_into(image, order, region.intersect(&image_rect(image)), self);
+        Ok(())
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.0.width()
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.0.height()
+    }
+
+    /// `[h, s, v]` of pixel `(x, y)`, or `None` outside the image.
+    pub fn get(&self, x: u32, y: u32) -> Option<[u8; 3]> {
+        self.0.get_pixel_checked(x, y).map(|p| p.0)
+    }
+
+    /// The interleaved bytes.
+    pub fn as_raw(&self) -> &[u8] {
+        self.0.as_raw()
+    }
+
+    /// The underlying buffer (channels H, S, V), e.g. to save it as a PNG.
+    pub fn as_buffer(&self) -> &ImageBuffer<Rgb<u8>, Vec<u8>> {
+        &self.0
+    }
+}
+
+fn image_rect(image: &RgbImage) -> PixelRect {
+    PixelRect::image(image.width(), image.height())
+}
+
+fn convert_into(image: &RgbImage, order: ChannelOrder, region: PixelRect, out: &mut HsvImage) {
+    if region.is_empty() {
+        return;
+    }
+    let t = tables();
+    let width = image.width() as usize;
+    let (x0, x1) = (region.x as usize, region.right() as usize);
+    let src = image.as_raw();
+    let dst: &mut [u8] = &mut out.0;
+    for y in region.y as usize..region.bottom() as usize {
+        let start = (y * width + x0) * 3;
+        let end = (y * width + x1) * 3;
+        for (s, d) in src[start..end]
+            .chunks_exact(3)
+            .zip(dst[start..end].chunks_exact_mut(3))
+        {
+            let rgb = match order {
+                ChannelOrder::Rgb => [s[0], s[1], s[2]],
+                ChannelOrder::Bgr => [s[2], s[1], s[0]],
+            };
+            d.copy_from_slice(&hsv_with(t, rgb));
+        }
+    }
+}
+
+/// Gray image of a colour image (`COLOR_RGB2GRAY` or `COLOR_BGR2GRAY`).
+pub fn gray_image(image: &RgbImage, order: ChannelOrder) -> GrayImage {
+    let mut out = GrayImage::new(image.width(), image.height());
+    for (s, d) in image.pixels().zip(out.pixels_mut()) {
+        let rgb = match order {
+            ChannelOrder::Rgb => s.0,
+            ChannelOrder::Bgr => [s.0[2], s.0[1], s.0[0]],
+        };
+        d.0[0] = rgb_to_gray(rgb);
+    }
+    out
+}
+
+/// Inclusive per-channel bounds, as OpenCV's `inRange(src, lower, upper)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChannelRange {
+    /// Lowest accepted value per channel.
+    pub lower: [u8; 3],
+    /// Highest accepted value per channel.
+    pub upper: [u8; 3],
+}
+
+impl ChannelRange {
+    /// The mask of OpenCV's CamShift sample (`camshiftdemo.cpp`): saturation >= 30 and value
+    /// in 10..=255, any hue.
+    pub const CAMSHIFT_DEMO: ChannelRange = ChannelRange {
+        lower: [0, 30, 10],
+        upper: [180, 255, 255],
+    };
+
+    /// True when every channel of `pixel` is within its bounds.
+    #[inline]
+    pub fn contains(&self, pixel: [u8; 3]) -> bool {
+        (0..3).all(|c| self.lower[c] <= pixel[c] && pixel[c] <= self.upper[c])
+    }
+}
+
+/// `inRange` on a 3-channel image: 255 where every channel is within `range`, else 0.
+///
+/// # Errors
+/// [`TrackError::ChannelCount`] when the image does not have 3 channels.
+pub fn in_range(image: ImageView<'_>, range: &ChannelRange) -> Result<GrayImage> {
+    if image.channels() != 3 {
+        return Err(TrackError::ChannelCount {
+            what: "in_range".into(),
+            expected: "3".into(),
+            found: image.channels(),
+        });
+    }
+    let mut out = GrayImage::new(image.width(), image.height());
+    for (s, d) in image.data().chunks_exact(3).zip(out.iter_mut()) {
+        *d = if range.contains([s[0], s[1], s[2]]) {
+            255
+        } else {
+            0
+        };
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn primaries_and_grays() {
+        assert_eq!(rgb_to_hsv([255, 0, 0]), [0, 255, 255]);
+        assert_eq!(rgb_to_hsv([0, 255, 0]), [60, 255, 255]);
+        assert_eq!(rgb_to_hsv([0, 0, 255]), [120, 255, 255]);
+        // Gray is hue 0 (red) with zero saturation.
+        assert_eq!(rgb_to_hsv([128, 128, 128]), [0, 0, 128]);
+        assert_eq!(rgb_to_hsv([0, 0, 0]), [0, 0, 0]);
+        // Magenta-ish reds wrap to the top of the hue range.
+        assert_eq!(rgb_to_hsv([255, 0, 10])[0], 179);
+        assert_eq!(rgb_to_gray([255, 255, 255]), 255);
+        assert_eq!(rgb_to_gray([255, 0, 0]), 76);
+    }
+
+    #[test]
+    fn region_conversion_matches_the_whole_image() {
+        let img = RgbImage::from_fn(9, 7, |x, y| Rgb([(x * 29) as u8, (y * 37) as u8, 90]));
+        let full = HsvImage::from_image(&img, ChannelOrder::Rgb);
+        let mut part = HsvImage::new(9, 7);
+        part.convert_region(&img, ChannelOrder::Rgb, PixelRect::new(2, 1, 30, 3))
+            .expect("same size");
+        assert_eq!(part.get(5, 2), full.get(5, 2));
+        assert_eq!(part.get(1, 2), Some([0, 0, 0]));
+        assert_eq!(part.get(5, 5), Some([0, 0, 0]));
+        let other = RgbImage::new(3, 3);
+        assert!(
+            part.convert_region(&other, ChannelOrder::Rgb, PixelRect::new(0, 0, 1, 1))
+                .is_err()
+        );
+    }
+}
