@@ -47,7 +47,10 @@ mod error;
 mod histogram;
 mod hsv;
 mod meanshift;
+mod model;
 mod rect;
+pub mod synthetic;
+mod tracker;
 mod view;
 
 pub use backproject::{BackProjector, back_project};
@@ -59,12 +62,18 @@ pub use hsv::{
 pub use meanshift::{
     CamShiftResult, MeanShiftResult, Moments, RotatedBox, TermCriteria, cam_shift, mean_shift,
 };
+pub use model::AppearanceModel;
 pub use rect::PixelRect;
+pub use tracker::{
+    DepthView, MarkerInit, MotionModel, Observation, Track, TrackStatus, Tracker, TrackerConfig,
+    WindowMode,
+};
 pub use view::ImageView;
 
 /// The types most programs need, for `use meanshift_track::prelude::*`.
 pub mod prelude {
     pub use crate::{
-        ChannelOrder, HistogramSpec, HsvImage, ImageView, PixelRect, TermCriteria, TrackError,
+        AppearanceModel, ChannelOrder, HistogramSpec, HsvImage, ImageView, MarkerInit, PixelRect,
+        TermCriteria, TrackError, TrackStatus, Tracker, TrackerConfig,
     };
 }

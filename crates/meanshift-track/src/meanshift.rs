@@ -114,9 +114,13 @@ pub(crate) fn moments_in(image: &GrayImage, rect: PixelRect) -> Moments {
     moments_from_sums([s0, sx, sy, sxx, sxy, syy])
 }
 
-pub(crate) fn moments_from_sums([s0, sx, sy, sxx, sxy, syy]: [u64; 6]) -> Moments {
-    let (m00, m10, m01) = (s0 as f64, sx as f64, sy as f64);
-    let (m20, m11, m02) = (sxx as f64, sxy as f64, syy as f64);
+pub(crate) fn moments_from_sums(sums: [u64; 6]) -> Moments {
+    moments_from_f64_sums(sums.map(|s| s as f64))
+}
+
+/// Moments from the sums of `v`, `v x`, `v y`, `v x²`, `v x y`, `v y²`, central moments as
+/// OpenCV's `completeMomentState`.
+pub(crate) fn moments_from_f64_sums([m00, m10, m01, m20, m11, m02]: [f64; 6]) -> Moments {
     let (mut cx, mut cy) = (0.0, 0.0);
     if m00.abs() > f64::EPSILON {
         let inv = 1.0 / m00;
@@ -251,6 +255,55 @@ pub struct RotatedBox {
     pub angle_deg: f64,
 }
 
+/// CamShift's ellipse of a window's second moments (lengths are 4 standard deviations).
+pub(crate) struct Axes {
+    pub(crate) length: f64,
+    pub(crate) width: f64,
+    cs: f64,
+    sn: f64,
+    theta: f64,
+}
+
+impl Axes {
+    /// OpenCV's arithmetic, step for step; `m.m00` must be positive.
+    pub(crate) fn of(m: &Moments) -> Axes {
+        let inv_m00 = 1.0 / m.m00;
+        let a = m.mu20 * inv_m00;
+        let b = m.mu11 * inv_m00;
+        let c = m.mu02 * inv_m00;
+        let square = (4.0 * b * b + (a - c) * (a - c)).sqrt();
+        let mut theta = (2.0 * b).atan2(a - c + square);
+        let (mut cs, mut sn) = (theta.cos(), theta.sin());
+        let rotate_a = (cs * cs * m.mu20 + 2.0 * cs * sn * m.mu11 + sn * sn * m.mu02).max(0.0);
+        let rotate_c = (sn * sn * m.mu20 - 2.0 * cs * sn * m.mu11 + cs * cs * m.mu02).max(0.0);
+        let mut length = (rotate_a * inv_m00).sqrt() * 4.0;
+        let mut width = (rotate_c * inv_m00).sqrt() * 4.0;
+        if length < width {
+            std::mem::swap(&mut length, &mut width);
+            std::mem::swap(&mut cs, &mut sn);
+            theta = std::f64::consts::FRAC_PI_2 - theta;
+        }
+        Axes {
+            length,
+            width,
+            cs,
+            sn,
+            theta,
+        }
+    }
+
+    /// CamShift's next window size (before clipping to the image): the ellipse's extent plus
+    /// 2 pixels in each direction.
+    pub(crate) fn window_size(&self) -> (i32, i32) {
+        let t0 = round_i32((self.length * self.cs).abs());
+        let t1 = round_i32((self.width * self.sn).abs());
+        let w = t0.max(t1).saturating_add(2);
+        let t0 = round_i32((self.length * self.sn).abs());
+        let t1 = round_i32((self.width * self.cs).abs());
+        (w, t0.max(t1).saturating_add(2))
+    }
+}
+
 /// Outcome of [`cam_shift`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CamShiftResult {
@@ -296,33 +349,17 @@ pub fn cam_shift(
     let inv_m00 = 1.0 / m.m00;
     let xc = round_i32(m.m10 * inv_m00 + f64::from(win.x));
     let yc = round_i32(m.m01 * inv_m00 + f64::from(win.y));
-    let a = m.mu20 * inv_m00;
-    let b = m.mu11 * inv_m00;
-    let c = m.mu02 * inv_m00;
-    let square = (4.0 * b * b + (a - c) * (a - c)).sqrt();
-    let mut theta = (2.0 * b).atan2(a - c + square);
-    let (mut cs, mut sn) = (theta.cos(), theta.sin());
-    let rotate_a = (cs * cs * m.mu20 + 2.0 * cs * sn * m.mu11 + sn * sn * m.mu02).max(0.0);
-    let rotate_c = (sn * sn * m.mu20 - 2.0 * cs * sn * m.mu11 + cs * cs * m.mu02).max(0.0);
-    let mut length = (rotate_a * inv_m00).sqrt() * 4.0;
-    let mut width = (rotate_c * inv_m00).sqrt() * 4.0;
-    if length < width {
-        std::mem::swap(&mut length, &mut width);
-        std::mem::swap(&mut cs, &mut sn);
-        theta = std::f64::consts::FRAC_PI_2 - theta;
-    }
-    let t0 = round_i32((length * cs).abs());
-    let t1 = round_i32((width * sn).abs());
-    win.width = (t0.max(t1) + 2).min((w - xc) * 2);
-    let t0 = round_i32((length * sn).abs());
-    let t1 = round_i32((width * cs).abs());
-    win.height = (t0.max(t1) + 2).min((h - yc) * 2);
+    let axes = Axes::of(&m);
+    let (size_w, size_h) = axes.window_size();
+    win.width = size_w.min((w - xc) * 2);
+    win.height = size_h.min((h - yc) * 2);
     win.x = (xc - win.width / 2).max(0);
     win.y = (yc - win.height / 2).max(0);
     win.width = (w - win.x).min(win.width);
     win.height = (h - win.y).min(win.height);
 
-    let mut angle = ((std::f64::consts::FRAC_PI_2 + theta) * 180.0 / std::f64::consts::PI) as f32;
+    let mut angle =
+        ((std::f64::consts::FRAC_PI_2 + axes.theta) * 180.0 / std::f64::consts::PI) as f32;
     while angle < 0.0 {
         angle += 360.0;
     }
@@ -338,8 +375,8 @@ pub fn cam_shift(
         window: win,
         rotated: RotatedBox {
             center: Point2::new(f64::from(center_x), f64::from(center_y)),
-            width: f64::from(width as f32),
-            height: f64::from(length as f32),
+            width: f64::from(axes.width as f32),
+            height: f64::from(axes.length as f32),
             angle_deg: f64::from(angle),
         },
         iterations: ms.iterations,

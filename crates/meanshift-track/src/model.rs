@@ -1,0 +1,249 @@
+//! Appearance models of the tracker: what a marker looks like, and how much each pixel of a
+//! new frame looks like it.
+
+use image::RgbImage;
+
+use crate::backproject::BackProjector;
+use crate::error::{Result, TrackError};
+use crate::histogram::{Histogram, HistogramSpec};
+use crate::hsv::{ChannelRange, rgb_to_gray, rgb_to_hsv};
+use crate::rect::PixelRect;
+
+/// What the tracker models a marker's appearance with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AppearanceModel {
+    /// Hue histogram with OpenCV's back-projection (the paper's model; OpenCV's CamShift
+    /// sample). Pixels outside [`crate::TrackerConfig::hsv_mask`] do not count.
+    Hue {
+        /// Bins over hue 0..180.
+        bins: usize,
+    },
+    /// Hue–saturation histogram with back-projection; separates a saturated red marker from
+    /// paler reddish bark better than hue alone.
+    HueSaturation {
+        /// Bins over hue 0..180.
+        hue_bins: usize,
+        /// Bins over saturation 0..256.
+        saturation_bins: usize,
+    },
+    /// RGB histogram with kernel weighting and the Bhattacharyya coefficient (Comaniciu,
+    /// Ramesh, Meer 2003, "Kernel-based object tracking", IEEE TPAMI 25(5)): the mean-shift
+    /// weights are `sqrt(q_u / p_u)` of the target and candidate histograms.
+    Rgb {
+        /// Bins per channel over 0..256.
+        bins: usize,
+    },
+    /// Gray-level histogram with back-projection, for black/white targets where hue means
+    /// nothing.
+    Gray {
+        /// Bins over 0..256.
+        bins: usize,
+    },
+}
+
+impl AppearanceModel {
+    /// The paper's model: a hue histogram; 16 bins as OpenCV's CamShift sample.
+    pub const PAPER: AppearanceModel = AppearanceModel::Hue { bins: 16 };
+
+    /// The name used on command lines and in files: `hue`, `hs`, `rgb`, `gray`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Hue { .. } => "hue",
+            Self::HueSaturation { .. } => "hs",
+            Self::Rgb { .. } => "rgb",
+            Self::Gray { .. } => "gray",
+        }
+    }
+
+    /// The model of a name (`hue`, `hs`, `rgb`, `gray`) with its default bins: 16 hue bins;
+    /// 16x4 hue–saturation (coarse saturation bins keep blurred markers in the model); 16 per RGB channel (Comaniciu et al. use 16x16x16); 32 gray.
+    ///
+    /// # Errors
+    /// [`TrackError::InvalidParameter`] for any other name.
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "hue" => Ok(Self::PAPER),
+            "hs" => Ok(Self::HueSaturation {
+                hue_bins: 16,
+                saturation_bins: 4,
+            }),
+            "rgb" => Ok(Self::Rgb { bins: 16 }),
+            "gray" => Ok(Self::Gray { bins: 32 }),
+            other => Err(TrackError::param(
+                "appearance model",
+                format!("{other:?}; expected hue, hs, rgb or gray"),
+            )),
+        }
+    }
+
+    /// The histogram layout of the model (over HSV for hue/hs, RGB for rgb, gray for gray).
+    pub fn spec(&self) -> HistogramSpec {
+        match *self {
+            Self::Hue { bins } => HistogramSpec::hue(bins),
+            Self::HueSaturation {
+                hue_bins,
+                saturation_bins,
+            } => HistogramSpec::hue_saturation(hue_bins, saturation_bins),
+            Self::Rgb { bins } => HistogramSpec::rgb(bins),
+            Self::Gray { bins } => HistogramSpec::gray(bins),
+        }
+    }
+
+    /// The colour values the model's histogram reads from an RGB pixel, and whether the pixel
+    /// counts at all (the HSV mask).
+    #[inline]
+    pub(crate) fn features(&self, rgb: [u8; 3], mask: &ChannelRange) -> Option<[u8; 3]> {
+        match self {
+            Self::Hue { .. } | Self::HueSaturation { .. } => {
+                let hsv = rgb_to_hsv(rgb);
+                mask.contains(hsv).then_some(hsv)
+            }
+            Self::Rgb { .. } => Some(rgb),
+            Self::Gray { .. } => Some([rgb_to_gray(rgb), 0, 0]),
+        }
+    }
+}
+
+/// A marker's learned appearance.
+#[derive(Debug, Clone)]
+pub(crate) enum MarkerModel {
+    /// Back-projection of a normalised histogram (hue, hue–saturation, gray).
+    Projected { projector: BackProjector },
+    /// Kernel-weighted target histogram `q` (sums to 1) for Bhattacharyya tracking.
+    Kernel { hist: Histogram, q: Vec<f64> },
+}
+
+/// Feature bytes of every pixel of `rect` (inside the image), row-major, 3 per pixel, with
+/// `None` for masked-out pixels.
+fn features_in(
+    frame: &RgbImage,
+    rect: PixelRect,
+    model: &AppearanceModel,
+    mask: &ChannelRange,
+) -> Vec<Option<[u8; 3]>> {
+    let mut out = Vec::with_capacity(rect.area() as usize);
+    for y in rect.y..rect.bottom() as i32 {
+        for x in rect.x..rect.right() as i32 {
+            let p = frame.get_pixel(x as u32, y as u32).0;
+            out.push(model.features(p, mask));
+        }
+    }
+    out
+}
+
+impl MarkerModel {
+    /// Learn from the pixels of `window` (inside the frame).
+    pub(crate) fn learn(
+        id: &str,
+        frame: &RgbImage,
+        window: PixelRect,
+        model: &AppearanceModel,
+        mask: &ChannelRange,
+        background_weighting: bool,
+    ) -> Result<Self> {
+        let features = features_in(frame, window, model, mask);
+        let mut hist = Histogram::new(model.spec())?;
+        let (w, h) = (window.width as usize, window.height as usize);
+        let mut used = 0usize;
+        let mut q = vec![0.0; hist.values().len()];
+        for (k, f) in features.iter().enumerate() {
+            let Some(f) = f else { continue };
+            let Some(bin) = hist.bin_of(f) else { continue };
+            used += 1;
+            hist.values_mut()[bin] += 1.0;
+            // Epanechnikov kernel profile over the window's inscribed ellipse.
+            let (i, j) = ((k % w) as f64, (k / w) as f64);
+            let r2 = kernel_r2(i, j, w, h);
+            if r2 < 1.0 {
+                q[bin] += 1.0 - r2;
+            }
+        }
+        if used == 0 {
+            return Err(TrackError::EmptyModel {
+                id: id.to_string(),
+                reason: format!(
+                    "none of its {} pixels passes the {} model's mask",
+                    window.area(),
+                    model.name()
+                ),
+            });
+        }
+        match model {
+            AppearanceModel::Rgb { .. } => {
+                let total: f64 = q.iter().sum();
+                if total <= 0.0 {
+                    return Err(TrackError::EmptyModel {
+                        id: id.to_string(),
+                        reason: "the window is too small for a kernel".into(),
+                    });
+                }
+                q.iter_mut().for_each(|v| *v /= total);
+                Ok(Self::Kernel { hist, q })
+            }
+            _ => {
+                if background_weighting {
+                    weigh_by_background(&mut hist, frame, window, model, mask);
+                }
+                hist.normalize_min_max(0.0, 255.0)?;
+                // A histogram with every bin equal normalises to all zero: keep the counts.
+                if hist.values().iter().all(|&v| v == 0.0) {
+                    hist.values_mut().iter_mut().for_each(|v| *v = 255.0);
+                }
+                Ok(Self::Projected {
+                    projector: BackProjector::new(hist, 1.0)?,
+                })
+            }
+        }
+    }
+}
+
+/// Background weighting in the spirit of Comaniciu, Ramesh, Meer (2003), section 6.2: each
+/// bin `h_u` becomes `h_u² / (h_u + o_u)`, where `o_u` counts the bin in a ring one window
+/// wide around the window (eight times the window's area), so colours common around the
+/// marker (the background also inside its window) stop attracting the window. Their
+/// `min(o*/o_u, 1)` leaves a uniform background at full weight (one non-zero bin is its own
+/// minimum); the ratio `h_u / (h_u + o_u)` does not.
+fn weigh_by_background(
+    hist: &mut Histogram,
+    frame: &RgbImage,
+    window: PixelRect,
+    model: &AppearanceModel,
+    mask: &ChannelRange,
+) {
+    let ring = window
+        .grown(window.width, window.height)
+        .intersect(&PixelRect::image(frame.width(), frame.height()));
+    let mut background = vec![0.0f64; hist.values().len()];
+    for y in ring.y..ring.bottom() as i32 {
+        for x in ring.x..ring.right() as i32 {
+            let inside = x >= window.x
+                && y >= window.y
+                && i64::from(x) < window.right()
+                && i64::from(y) < window.bottom();
+            if inside {
+                continue;
+            }
+            let p = frame.get_pixel(x as u32, y as u32).0;
+            if let Some(bin) = model.features(p, mask).and_then(|f| hist.bin_of(&f)) {
+                background[bin] += 1.0;
+            }
+        }
+    }
+    for (v, &o) in hist.values_mut().iter_mut().zip(&background) {
+        let h = f64::from(*v);
+        if h > 0.0 {
+            *v = (h * h / (h + o)) as f32;
+        }
+    }
+}
+
+/// Squared normalised distance of pixel `(i, j)` of a `w` x `h` window from its centre, in
+/// units of the half-sizes (1 on the inscribed ellipse).
+#[inline]
+pub(crate) fn kernel_r2(i: f64, j: f64, w: usize, h: usize) -> f64 {
+    let hx = (w as f64 * 0.5).max(0.5);
+    let hy = (h as f64 * 0.5).max(0.5);
+    let dx = (i - (w as f64 - 1.0) * 0.5) / hx;
+    let dy = (j - (h as f64 - 1.0) * 0.5) / hy;
+    dx * dx + dy * dy
+}

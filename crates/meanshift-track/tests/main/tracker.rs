@@ -1,0 +1,247 @@
+//! The tracker on generated sequences, and its bad-input errors.
+
+use image::{Rgb, RgbImage};
+use meanshift_track::synthetic::{MARKER_RGB, Score, SequenceConfig, generate, score};
+use meanshift_track::{
+    AppearanceModel, DepthView, MarkerInit, PixelRect, TrackError, TrackStatus, Tracker,
+    TrackerConfig,
+};
+use nalgebra::Point2;
+
+/// The accuracy goal: a centre within 3 px of the truth.
+const TOLERANCE_PX: f64 = 3.0;
+
+fn run(config: TrackerConfig, seed: u64) -> Score {
+    let seq = generate(&SequenceConfig::paper_like(seed)).expect("valid config");
+    let mut tracker = Tracker::new(config, &seq.frames[0], None, &seq.inits).expect("inits");
+    for frame in &seq.frames[1..] {
+        tracker.update(frame, None).expect("same size");
+    }
+    score(tracker.tracks(), &seq.truth, TOLERANCE_PX).expect("same shape")
+}
+
+#[test]
+fn recovering_tracker_follows_a_pull_and_release_where_plain_mean_shift_does_not() {
+    let ours = run(TrackerConfig::default(), 3);
+    let plain = run(TrackerConfig::paper(), 3);
+    assert!(ours.fraction_within() >= 0.99, "{ours:?}");
+    assert_eq!(ours.identity_swaps, 0, "{ours:?}");
+    assert!(ours.mean_error_px < 0.5, "{ours:?}");
+    assert!(plain.fraction_within() < 0.95, "{plain:?}");
+}
+
+fn disc_frame(centers: &[(f64, f64, f64, [u8; 3])]) -> RgbImage {
+    RgbImage::from_fn(96, 64, |x, y| {
+        for &(cx, cy, r, rgb) in centers {
+            if (f64::from(x) - cx).powi(2) + (f64::from(y) - cy).powi(2) <= r * r {
+                return Rgb(rgb);
+            }
+        }
+        Rgb([100, 110, 95])
+    })
+}
+
+fn init(id: &str, x: i32, y: i32, size: i32) -> MarkerInit {
+    MarkerInit {
+        id: id.into(),
+        window: PixelRect::new(x, y, size, size),
+    }
+}
+
+#[test]
+fn re_seeding_moves_the_marker_and_tracking_continues_from_there() {
+    // Plain mean-shift cannot follow a 30 px jump; the user sets the centre, and the next
+    // frame is tracked from it.
+    let f0 = disc_frame(&[(20.0, 30.0, 4.0, MARKER_RGB)]);
+    let f1 = disc_frame(&[(50.0, 30.0, 4.0, MARKER_RGB)]);
+    let f2 = disc_frame(&[(52.0, 31.0, 4.0, MARKER_RGB)]);
+    let mut t =
+        Tracker::new(TrackerConfig::paper(), &f0, None, &[init("A", 15, 25, 11)]).expect("ok");
+    t.update(&f1, None).expect("same size");
+    let lost_at = t.tracks()[0].observations[1]
+        .center
+        .expect("plain mean-shift stays");
+    assert!((lost_at.x - 50.0).abs() > 10.0, "{lost_at:?}");
+    t.set_center("A", Point2::new(49.0, 30.0)).expect("inside");
+    assert_eq!(t.tracks()[0].observations[1].status, TrackStatus::Set);
+    t.update(&f2, None).expect("same size");
+    let c = t.tracks()[0].observations[2].center.expect("tracked");
+    assert!((c - Point2::new(52.0, 31.0)).norm() < 0.5, "{c:?}");
+    assert!(matches!(
+        t.set_center("Z", Point2::new(1.0, 1.0)),
+        Err(TrackError::UnknownMarker { .. })
+    ));
+    assert!(t.set_center("A", Point2::new(500.0, 1.0)).is_err());
+    assert!(t.set_center("A", Point2::new(f64::NAN, 1.0)).is_err());
+}
+
+#[test]
+fn a_fast_jump_is_recovered_and_a_same_colour_neighbour_is_not_taken() {
+    let f0 = disc_frame(&[(20.0, 30.0, 4.0, MARKER_RGB), (70.0, 30.0, 4.0, MARKER_RGB)]);
+    // A jumps 28 px right, towards B, which stays.
+    let f1 = disc_frame(&[(48.0, 30.0, 4.0, MARKER_RGB), (70.0, 30.0, 4.0, MARKER_RGB)]);
+    let inits = [init("A", 15, 25, 11), init("B", 65, 25, 11)];
+    let mut t = Tracker::new(TrackerConfig::default(), &f0, None, &inits).expect("valid");
+    t.update(&f1, None).expect("same size");
+    let a = t.tracks()[0].observations[1];
+    let b = t.tracks()[1].observations[1];
+    assert_eq!(a.status, TrackStatus::Recovered);
+    assert!(
+        (a.center.expect("found") - Point2::new(48.0, 30.0)).norm() < 0.5,
+        "{a:?}"
+    );
+    assert!(
+        (b.center.expect("found") - Point2::new(70.0, 30.0)).norm() < 0.5,
+        "{b:?}"
+    );
+    // A disappears: coasting, then lost; it never finds itself on B's blob.
+    let f2 = disc_frame(&[(70.0, 30.0, 4.0, MARKER_RGB)]);
+    for _ in 0..8 {
+        t.update(&f2, None).expect("same size");
+    }
+    let statuses: Vec<TrackStatus> = t.tracks()[0].observations[2..]
+        .iter()
+        .map(|o| o.status)
+        .collect();
+    assert_eq!(statuses[0], TrackStatus::Predicted);
+    assert_eq!(*statuses.last().expect("frames"), TrackStatus::Lost);
+    assert!(
+        t.tracks()[0]
+            .observations
+            .last()
+            .expect("frames")
+            .center
+            .is_none()
+    );
+    for o in &t.tracks()[0].observations {
+        if let (Some(c), TrackStatus::Tracked | TrackStatus::Recovered) = (o.center, o.status) {
+            assert!(
+                (c - Point2::new(70.0, 30.0)).norm() > 5.0,
+                "A took B: {o:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn depth_gating_ignores_a_same_colour_blob_at_another_depth() {
+    // The marker at 1.5 m; a red blob overlapping its window at 3 m.
+    let frame = disc_frame(&[(40.0, 30.0, 4.0, MARKER_RGB), (46.0, 30.0, 4.0, MARKER_RGB)]);
+    let depth: Vec<Option<f64>> = (0..64)
+        .flat_map(|_| (0..96).map(|x| Some(if x < 45 { 1.5 } else { 3.0 })))
+        .collect();
+    let view = DepthView::new(96, 64, &depth).expect("size");
+    let inits = [init("A", 35, 25, 11)];
+    let mut gated_config = TrackerConfig::default();
+    gated_config.depth_gate_m = Some(0.3);
+    let mut gated = Tracker::new(gated_config, &frame, Some(view), &inits).expect("valid");
+    let mut plain = Tracker::new(TrackerConfig::default(), &frame, None, &inits).expect("valid");
+    for _ in 0..3 {
+        gated.update(&frame, Some(view)).expect("same size");
+        plain.update(&frame, None).expect("same size");
+    }
+    let g = gated.tracks()[0].observations[3].center.expect("found");
+    let p = plain.tracks()[0].observations[3].center.expect("found");
+    let truth = Point2::new(40.0, 30.0);
+    assert!((g - truth).norm() < 0.6, "gated {g:?}");
+    assert!((p - truth).norm() > 1.5, "ungated {p:?}");
+    assert!(DepthView::new(96, 63, &depth).is_err());
+    let wrong = DepthView::new(64, 96, &depth).expect("same count");
+    assert!(matches!(
+        gated.update(&frame, Some(wrong)),
+        Err(TrackError::SizeMismatch { .. })
+    ));
+}
+
+#[test]
+fn every_model_tracks_a_moving_disc() {
+    // The kernel (RGB) tracker stops short on a uniform disc: its steps shrink with the
+    // Bhattacharyya gradient, so it gets a looser bound.
+    for (name, tolerance_px) in [("hue", 1.0), ("hs", 1.0), ("rgb", 1.5)] {
+        let model = AppearanceModel::from_name(name).expect("known");
+        let mut t = Tracker::new(
+            TrackerConfig::for_model(model),
+            &disc_frame(&[(20.0, 30.0, 5.0, MARKER_RGB)]),
+            None,
+            &[init("A", 14, 24, 13)],
+        )
+        .expect("valid");
+        for k in 1..=10u32 {
+            let x = 20.0 + 3.0 * f64::from(k);
+            t.update(&disc_frame(&[(x, 30.0, 5.0, MARKER_RGB)]), None)
+                .expect("same size");
+            let c = t.tracks()[0].observations[k as usize]
+                .center
+                .expect("found");
+            let e = (c - Point2::new(x, 30.0)).norm();
+            assert!(e < tolerance_px, "{name} frame {k}: {c:?}");
+        }
+    }
+    // Gray level for a white target on a darker background.
+    let white = [240, 240, 240];
+    let mut t = Tracker::new(
+        TrackerConfig::for_model(AppearanceModel::from_name("gray").expect("known")),
+        &disc_frame(&[(20.0, 30.0, 5.0, white)]),
+        None,
+        &[init("W", 14, 24, 13)],
+    )
+    .expect("valid");
+    t.update(&disc_frame(&[(26.0, 32.0, 5.0, white)]), None)
+        .expect("same size");
+    let c = t.tracks()[0].observations[1].center.expect("found");
+    assert!((c - Point2::new(26.0, 32.0)).norm() < 1.0, "{c:?}");
+    assert!(AppearanceModel::from_name("hsv").is_err());
+}
+
+#[test]
+fn bad_input_is_a_typed_error() {
+    let frame = disc_frame(&[(20.0, 30.0, 4.0, MARKER_RGB)]);
+    let config = TrackerConfig::default;
+    type Check = fn(&TrackError) -> bool;
+    let cases: Vec<(Vec<MarkerInit>, Check)> = vec![
+        (vec![], |e| matches!(e, TrackError::InvalidParameter { .. })),
+        (vec![init("A", 15, 25, 0)], |e| {
+            matches!(e, TrackError::EmptyWindow { .. })
+        }),
+        (vec![init("A", 90, 25, 11)], |e| {
+            matches!(e, TrackError::WindowOutsideImage { .. })
+        }),
+        (vec![init("A", -3, 25, 11)], |e| {
+            matches!(e, TrackError::WindowOutsideImage { .. })
+        }),
+        (vec![init("A", 15, 25, 11), init("A", 60, 25, 11)], |e| {
+            matches!(e, TrackError::DuplicateId { .. })
+        }),
+        // Background only: nothing passes the saturation mask.
+        (vec![init("A", 60, 5, 11)], |e| {
+            matches!(e, TrackError::EmptyModel { .. })
+        }),
+    ];
+    for (inits, is_expected) in cases {
+        match Tracker::new(config(), &frame, None, &inits) {
+            Err(e) => assert!(is_expected(&e), "{inits:?}: {e}"),
+            Ok(_) => panic!("{inits:?} accepted"),
+        }
+    }
+    assert!(matches!(
+        Tracker::new(config(), &RgbImage::new(0, 0), None, &[init("A", 0, 0, 1)]),
+        Err(TrackError::EmptyImage { .. })
+    ));
+    let mut bad = config();
+    bad.min_confidence = 1.5;
+    assert!(Tracker::new(bad, &frame, None, &[init("A", 15, 25, 11)]).is_err());
+
+    let mut t = Tracker::new(config(), &frame, None, &[init("A", 15, 25, 11)]).expect("valid");
+    assert!(matches!(
+        t.update(&RgbImage::new(95, 64), None),
+        Err(TrackError::SizeMismatch { .. })
+    ));
+    assert!(matches!(
+        t.update(&RgbImage::new(0, 0), None),
+        Err(TrackError::EmptyImage { .. })
+    ));
+    // A failed update leaves the tracker as it was.
+    assert_eq!(t.frames(), 1);
+    t.update(&frame, None).expect("same size");
+    assert_eq!(t.frames(), 2);
+}
