@@ -95,7 +95,7 @@ pub struct TrackerConfig {
     pub motion: MotionModel,
     /// Confidence below which the tracker searches (0..1). For the histogram models the
     /// confidence is the back-projection mass in the window relative to the first frame's,
-    /// capped at 1; for the RGB model it is the Bhattacharyya coefficient. Default 0.3 (0.7
+    /// capped at 1; for the RGB model it is the Bhattacharyya coefficient. Default 0.4 (0.7
     /// with [`TrackerConfig::for_model`] and the RGB model).
     pub min_confidence: f64,
     /// Whether low confidence triggers the enlarged search (false: plain mean-shift).
@@ -134,7 +134,7 @@ impl TrackerConfig {
             },
             min_confidence: match model {
                 AppearanceModel::Rgb { .. } => 0.7,
-                _ => 0.3,
+                _ => 0.4,
             },
             recovery: true,
             search_radius_windows: 4.0,
@@ -419,6 +419,8 @@ impl Tracker {
                     id: init.id.clone(),
                 });
             }
+        }
+        for init in markers {
             tracker.add_marker(first_frame, depth.as_ref(), init)?;
         }
         Ok(tracker)

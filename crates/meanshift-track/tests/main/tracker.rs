@@ -132,8 +132,10 @@ fn depth_gating_ignores_a_same_colour_blob_at_another_depth() {
         .collect();
     let view = DepthView::new(96, 64, &depth).expect("size");
     let inits = [init("A", 35, 25, 11)];
-    let mut gated_config = TrackerConfig::default();
-    gated_config.depth_gate_m = Some(0.3);
+    let gated_config = TrackerConfig {
+        depth_gate_m: Some(0.3),
+        ..TrackerConfig::default()
+    };
     let mut gated = Tracker::new(gated_config, &frame, Some(view), &inits).expect("valid");
     let mut plain = Tracker::new(TrackerConfig::default(), &frame, None, &inits).expect("valid");
     for _ in 0..3 {
@@ -227,8 +229,10 @@ fn bad_input_is_a_typed_error() {
         Tracker::new(config(), &RgbImage::new(0, 0), None, &[init("A", 0, 0, 1)]),
         Err(TrackError::EmptyImage { .. })
     ));
-    let mut bad = config();
-    bad.min_confidence = 1.5;
+    let bad = TrackerConfig {
+        min_confidence: 1.5,
+        ..config()
+    };
     assert!(Tracker::new(bad, &frame, None, &[init("A", 15, 25, 11)]).is_err());
 
     let mut t = Tracker::new(config(), &frame, None, &[init("A", 15, 25, 11)]).expect("valid");

@@ -1,0 +1,64 @@
+//! Criterion benches of meanshift-track on 512x424 frames (the Kinect V2 depth size, the
+//! paper's projection image): the tracker per frame, and the OpenCV-style pipeline (whole-frame
+//! HSV + back-projection + meanShift) it replaces.
+#![allow(missing_docs, clippy::expect_used)] // bench harness: a failure should stop it
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use std::hint::black_box;
+use treemocap::meanshift_track::synthetic::{SequenceConfig, generate};
+use treemocap::meanshift_track::{
+    BackProjector, ChannelOrder, ChannelRange, Histogram, HistogramSpec, HsvImage, ImageView,
+    TermCriteria, Tracker, TrackerConfig, in_range, mean_shift,
+};
+
+fn bench(c: &mut Criterion) {
+    let mut config = SequenceConfig::paper_like(1);
+    config.frames = 40;
+    let seq = generate(&config).expect("valid config");
+    let markers = seq.inits.len();
+    let mut group = c.benchmark_group("meanshift_track");
+
+    // The tracker: every marker through 39 frames (release and swing included).
+    group.bench_function(format!("tracker_{markers}_markers_39_frames"), |b| {
+        b.iter(|| {
+            let mut t = Tracker::new(TrackerConfig::default(), &seq.frames[0], None, &seq.inits)
+                .expect("valid");
+            for f in &seq.frames[1..] {
+                t.update(f, None).expect("same size");
+            }
+            black_box(t.frames())
+        })
+    });
+
+    // What the paper's OpenCV loop does per frame and marker: whole-frame HSV, mask,
+    // back-projection, then meanShift.
+    let hsv0 = HsvImage::from_image(&seq.frames[0], ChannelOrder::Rgb);
+    let mask = in_range(ImageView::from(&hsv0), &ChannelRange::CAMSHIFT_DEMO).expect("3 ch");
+    let mut hist = Histogram::calc(
+        ImageView::from(&hsv0),
+        HistogramSpec::hue(16),
+        Some(&mask),
+        Some(seq.inits[0].window),
+    )
+    .expect("valid");
+    hist.normalize_min_max(0.0, 255.0).expect("finite");
+    let projector = BackProjector::new(hist, 1.0).expect("finite");
+    let frame = &seq.frames[10];
+    group.bench_function("opencv_style_hsv_backproject_meanshift_1_marker", |b| {
+        b.iter(|| {
+            let hsv = HsvImage::from_image(frame, ChannelOrder::Rgb);
+            let prob = projector.project(ImageView::from(&hsv)).expect("projects");
+            black_box(mean_shift(&prob, seq.inits[0].window, TermCriteria::default()).expect("ok"))
+        })
+    });
+    group.bench_function("opencv_style_backproject_meanshift_1_marker", |b| {
+        b.iter(|| {
+            let prob = projector.project(ImageView::from(&hsv0)).expect("projects");
+            black_box(mean_shift(&prob, seq.inits[0].window, TermCriteria::default()).expect("ok"))
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
