@@ -9,6 +9,13 @@
 //!   hue 0..179), [`rgb_to_gray`], [`in_range`], [`Histogram`] (`calcHist` binning,
 //!   `normalize(NORM_MINMAX)`), [`BackProjector`] (`calcBackProject`), [`mean_shift`] and
 //!   [`cam_shift`] (`meanShift`, `CamShift`, [`TermCriteria`]).
+//! - **The marker tracker** ([`Tracker`], [`TrackerConfig`]): many markers from the windows a
+//!   user drew on the first frame; hue (the paper), hue–saturation, RGB kernel (Bhattacharyya)
+//!   or gray models ([`AppearanceModel`]); a confidence and a [`TrackStatus`] per frame;
+//!   prediction, an enlarged search from four directions, exclusive assignment, coasting,
+//!   re-seeding ([`Tracker::set_center`]), depth gating ([`DepthView`]) and sub-pixel centres.
+//!   [`TrackerConfig::paper`] is the paper's plain mean-shift, for comparison; [`synthetic`]
+//!   generates seeded pull-and-release sequences with ground truth and scores tracks.
 //!
 //! Units and frames: pixels, with pixel centres at integer coordinates (`docs/conventions.md`);
 //! windows are [`PixelRect`]s (OpenCV's `Rect`: top-left corner and size).
