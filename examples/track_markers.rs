@@ -1,7 +1,7 @@
 //! Track markers through a folder of frames from the windows a user drew on the first one.
 //!
 //! ```text
-//! cargo run --release --example track_markers -- <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray]
+//! cargo run --release --example track_markers -- <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray] [--paper]
 //! ```
 //!
 //! `FRAMES_DIR` holds PNG or JPEG images, taken in name order. `INIT_JSON` is
@@ -27,11 +27,12 @@ use treemocap::meanshift_track::{
 };
 use treemocap::nalgebra::{Point2, Vector3};
 
-const USAGE: &str = "usage: track_markers <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray]
+const USAGE: &str = "usage: track_markers <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray] [--paper]
 
 Tracks every marker of INIT_JSON ([{\"id\": \"A\", \"x\": 396, \"y\": 158, \"w\": 12, \"h\": 12}, ...],
 windows on the first frame) through the PNG/JPEG images of FRAMES_DIR in name order and
-writes JSON tracks to stdout or to --out. Default model: hue (the paper's).
+writes JSON tracks to stdout or to --out. Default model: hue (the paper's). --paper runs
+plain mean-shift as the paper did (no prediction, recovery or exclusivity), for comparison.
 With no arguments: a synthetic Kinect V2 sequence, scored against its ground truth.";
 
 /// Accuracy goal of the tracker: a centre within this distance of the truth (pixels).
@@ -72,17 +73,20 @@ struct Args {
     init_json: PathBuf,
     out: Option<PathBuf>,
     model: AppearanceModel,
+    paper: bool,
 }
 
 fn parse_args() -> Result<Option<Option<Args>>, String> {
     let mut positional = Vec::new();
     let mut out = None;
     let mut model = AppearanceModel::PAPER;
+    let mut paper = false;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
             "-h" | "--help" => return Ok(None),
             "--out" => out = Some(PathBuf::from(it.next().ok_or("--out needs a file")?)),
+            "--paper" => paper = true,
             "--model" => {
                 let name = it.next().ok_or("--model needs hue, hs, rgb or gray")?;
                 model = AppearanceModel::from_name(&name).map_err(|e| e.to_string())?;
@@ -103,6 +107,7 @@ fn parse_args() -> Result<Option<Option<Args>>, String> {
                 init_json,
                 out,
                 model,
+                paper,
             })))
         }
         n => Err(format!(
@@ -172,7 +177,15 @@ fn track_folder(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let first = decode(&paths[0])?;
     decode_s += t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let mut tracker = Tracker::new(TrackerConfig::for_model(args.model), &first, None, &inits)
+    let config = if args.paper {
+        TrackerConfig {
+            model: args.model,
+            ..TrackerConfig::paper()
+        }
+    } else {
+        TrackerConfig::for_model(args.model)
+    };
+    let mut tracker = Tracker::new(config, &first, None, &inits)
         .map_err(|e| format!("{}: {e}", paths[0].display()))?;
     track_s += t.elapsed().as_secs_f64();
     for (k, path) in paths.iter().enumerate().skip(1) {

@@ -50,6 +50,7 @@
 #![forbid(unsafe_code)]
 
 mod backproject;
+mod context;
 mod error;
 mod histogram;
 mod hsv;

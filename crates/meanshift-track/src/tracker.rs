@@ -8,16 +8,19 @@
 //! 1. predict the centre (static, constant velocity, or an alpha–beta filter);
 //! 2. mean-shift from the prediction over a region a little larger than the window, computing
 //!    the model's weights only there (never over the whole frame);
-//! 3. accept when the confidence is at least [`TrackerConfig::min_confidence`] and no marker
-//!    nearer to its own prediction already took the same place (status `tracked`);
+//! 3. accept when the confidence is at least [`TrackerConfig::min_confidence`], no marker
+//!    nearer to its own prediction already took the same place, and, after a jump of more
+//!    than half a window, the surroundings still look like the marker's
+//!    ([`TrackerConfig::context_check`]) (status `tracked`);
 //! 4. otherwise search: mean-shift with a window twice the size, started at the prediction,
 //!    the last centre and four points left, right, above and below it at half and full
 //!    [`TrackerConfig::search_radius_windows`], each refined with the normal window; the
 //!    places other markers took this frame do not vote. The best candidate by confidence,
-//!    discounted by its distance from the prediction, is accepted if confident enough
-//!    (status `recovered`);
+//!    discounted by its distance from the prediction and by how much less familiar its
+//!    surroundings are, is accepted if confident enough (status `recovered`);
 //! 5. otherwise coast on the prediction for up to [`TrackerConfig::max_coast_frames`] frames
-//!    (status `predicted`), then report `lost` (no centre) while the search keeps widening.
+//!    (status `predicted`) with a decaying velocity, then report `lost` (no centre) while the
+//!    search keeps widening.
 //!
 //! Centres are the weighted centroid of the converged window, in pixel coordinates with pixel
 //! centres at integers.
@@ -25,6 +28,7 @@
 use image::RgbImage;
 use nalgebra::{Point2, Vector2};
 
+use crate::context::ContextTemplate;
 use crate::error::{Result, TrackError};
 use crate::hsv::ChannelRange;
 use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
@@ -46,6 +50,34 @@ const ADAPTIVE_BORDER_PX: i32 = 10;
 const SEARCH_WINDOW_SCALE: i32 = 2;
 /// Markers closer than this fraction of their mean window size are on the same blob.
 const EXCLUSION_FRACTION: f64 = 0.75;
+/// The context template is this many times the window in each direction: the marker and
+/// half a window of its surroundings on every side.
+const CONTEXT_SCALE: i32 = 2;
+/// Share of each accepted frame's patch blended into the context template.
+const CONTEXT_RATE: f32 = 0.1;
+/// Share of each accepted frame's correlation blended into the marker's typical correlation.
+const CONTEXT_LEVEL_RATE: f64 = 0.2;
+/// A candidate of the quick pass whose context correlation is this far below the marker's
+/// typical one is doubted and sent to the search.
+const CONTEXT_DROP: f64 = 0.08;
+/// Typical context correlation below which the surroundings are too plain or too noisy to
+/// tell markers apart, and the context check is skipped for the marker.
+const CONTEXT_MIN_LEVEL: f64 = 0.6;
+/// The search discounts a candidate by a Gaussian of its distance from the prediction with
+/// this fraction of the search radius as its sigma: a confident blob at the edge of the
+/// search is worth an eighth of one at the prediction.
+const SEARCH_SIGMA_FRACTION: f64 = 0.5;
+/// Share of the velocity kept per coasting frame.
+const COAST_VELOCITY_DECAY: f64 = 0.5;
+/// Two centres closer than this fraction of the window size are the same place.
+const SAME_PLACE_FRACTION: f64 = 0.25;
+/// The search does not accept a candidate whose context correlation is this far below the
+/// marker's typical one (more than [`CONTEXT_DROP`]: motion blur at a release lowers the
+/// correlation of the true marker too).
+const CONTEXT_REJECT: f64 = 0.12;
+/// Scale of the context term in the search score, `exp((ncc - typical) / scale)`: a
+/// candidate 0.1 below is worth about an eighth of one at the typical level.
+const CONTEXT_SHARPNESS: f64 = 0.05;
 
 /// Whether the window keeps its size or adapts it as CamShift does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -115,6 +147,12 @@ pub struct TrackerConfig {
     /// (Comaniciu et al. 2003, background-weighted histogram). Default true; the paper's
     /// plain histogram with false.
     pub background_weighting: bool,
+    /// Tell look-alike markers apart by their surroundings: a gray patch twice the window,
+    /// learned on the first frame and updated slowly, is compared with each candidate's by
+    /// normalised cross-correlation; a candidate that correlates clearly worse than the
+    /// marker usually does is searched past, and the search prefers the best-correlating
+    /// candidate. Default true; false for the paper's tracker.
+    pub context_check: bool,
 }
 
 impl TrackerConfig {
@@ -142,6 +180,7 @@ impl TrackerConfig {
             depth_gate_m: None,
             exclusive: true,
             background_weighting: true,
+            context_check: true,
         }
     }
 
@@ -153,6 +192,7 @@ impl TrackerConfig {
             recovery: false,
             exclusive: false,
             background_weighting: false,
+            context_check: false,
             max_coast_frames: usize::MAX,
             ..Self::for_model(AppearanceModel::PAPER)
         }
@@ -330,6 +370,10 @@ struct MarkerState {
     depth_m: Option<f64>,
     coasting: usize,
     last_status: TrackStatus,
+    /// The surroundings, with [`TrackerConfig::context_check`].
+    context: Option<ContextTemplate>,
+    /// Typical context correlation of accepted frames.
+    context_level: f64,
 }
 
 /// The result of a mean-shift from one start.
@@ -364,6 +408,8 @@ pub struct Tracker {
     markers: Vec<MarkerState>,
     tracks: Vec<Track>,
     region: Region,
+    /// Patch scratch for the context correlation.
+    patch: Vec<f32>,
 }
 
 fn image_rect(width: u32, height: u32) -> PixelRect {
@@ -411,6 +457,7 @@ impl Tracker {
             markers: Vec::with_capacity(markers.len()),
             tracks: Vec::with_capacity(markers.len()),
             region: Region::default(),
+            patch: Vec::new(),
         };
         tracker.check_depth(depth.as_ref())?;
         for (k, init) in markers.iter().enumerate() {
@@ -489,6 +536,8 @@ impl Tracker {
             depth_m: None,
             coasting: 0,
             last_status: TrackStatus::Tracked,
+            context: None,
+            context_level: 1.0,
         };
         // Reference mass: the mass of the user's window; then refine there.
         let region = w.grown(w.width, w.height);
@@ -514,6 +563,14 @@ impl Tracker {
         state.last_center = mode.center;
         state.motion.position = mode.center;
         state.depth_m = depth.and_then(|d| window_depth(d, mode.window));
+        if self.config.context_check {
+            state.context = Some(ContextTemplate::learn(
+                frame,
+                mode.center,
+                (w.width * CONTEXT_SCALE) as usize,
+                (w.height * CONTEXT_SCALE) as usize,
+            ));
+        }
         self.markers.push(state);
         self.tracks.push(Track {
             id: init.id.clone(),
@@ -561,6 +618,16 @@ impl Tracker {
             fill_region(&mut self.region, &self.config, m, frame, depth, region, &[]);
             quick.push(locate(&mut self.region, &self.config, m, pred, m.size));
         }
+        let quick_context: Vec<Option<f64>> = self
+            .markers
+            .iter()
+            .zip(&quick)
+            .map(|(m, mode)| {
+                m.context
+                    .as_ref()
+                    .map(|t| t.ncc(frame, mode.center, &mut self.patch))
+            })
+            .collect();
 
         // Accept confident results, nearest to their prediction first; a result on a place
         // already taken goes to the search.
@@ -571,12 +638,20 @@ impl Tracker {
             let db = (quick[b].center - predictions[b]).norm();
             da.total_cmp(&db)
         });
-        let mut results: Vec<Option<(Mode, TrackStatus)>> = vec![None; n];
+        let mut results: Vec<Option<(Mode, TrackStatus, Option<f64>)>> = vec![None; n];
         let mut claimed: Vec<(usize, PixelRect, Point2<f64>)> = Vec::new();
         let mut to_search = Vec::new();
         for &i in &order {
             let mode = quick[i];
+            // Identity is in doubt only after a jump of more than half a window, the reach of
+            // plain mean-shift: a slower marker cannot have swapped with a look-alike.
+            let m = &self.markers[i];
+            let jumped = (mode.center - m.last_center).norm() > 0.5 * window_px(m);
+            let familiar = !jumped
+                || !m.context_informative()
+                || quick_context[i].is_none_or(|c| c >= m.context_level - CONTEXT_DROP);
             let accept = mode.confidence >= threshold
+                && familiar
                 && !(self.config.exclusive
                     && (taken(&self.markers, i, mode.center, &claimed)
                         || nearer_to_other(&self.markers, i, mode.center, &predictions)));
@@ -584,7 +659,7 @@ impl Tracker {
                 if accept {
                     claimed.push((i, mode.window, mode.center));
                 }
-                results[i] = Some((mode, TrackStatus::Tracked));
+                results[i] = Some((mode, TrackStatus::Tracked, quick_context[i]));
             } else {
                 to_search.push(i);
             }
@@ -617,19 +692,48 @@ impl Tracker {
             );
             let exclusive = self.config.exclusive;
             let markers = &self.markers;
-            let accept = |c: Point2<f64>| {
-                !exclusive
+            let scratch = &mut self.patch;
+            let judge = |c: Point2<f64>| {
+                let free = !exclusive
                     || !(taken(markers, i, c, &claimed)
-                        || nearer_to_other(markers, i, c, &predictions))
+                        || nearer_to_other(markers, i, c, &predictions));
+                free.then(|| {
+                    m.context
+                        .as_ref()
+                        .filter(|_| m.context_informative())
+                        .map(|t| t.ncc(frame, c, scratch))
+                })
             };
-            let best = search(&mut self.region, &self.config, m, pred, radius, accept);
+            let level = m.context_level;
+            let quick_place = (quick[i].confidence >= threshold).then_some(quick[i].center);
+            let best = search(
+                &mut self.region,
+                &self.config,
+                m,
+                (
+                    pred,
+                    radius,
+                    SEARCH_SIGMA_FRACTION * self.config.search_radius_windows * size,
+                ),
+                quick[i],
+                judge,
+            );
             match best {
-                Some(mode) if mode.confidence >= threshold => {
+                // A candidate that looks less familiar than usual is still taken when it is
+                // where the quick pass went: the search found nothing better, so the
+                // surroundings changed rather than the marker.
+                Some((mode, context))
+                    if mode.confidence >= threshold
+                        && (context.is_none_or(|c| c >= level - CONTEXT_REJECT)
+                            || quick_place.is_some_and(|q| {
+                                (q - mode.center).norm() < SAME_PLACE_FRACTION * size
+                            })) =>
+                {
                     claimed.push((i, mode.window, mode.center));
-                    results[i] = Some((mode, TrackStatus::Recovered));
+                    results[i] = Some((mode, TrackStatus::Recovered, context));
                 }
                 other => {
-                    let confidence = other.map_or(quick[i].confidence, |m| m.confidence);
+                    let confidence = other.map_or(quick[i].confidence, |(m, _)| m.confidence);
                     results[i] = Some((
                         Mode {
                             center: pred,
@@ -638,17 +742,25 @@ impl Tracker {
                             moments: None,
                         },
                         TrackStatus::Predicted,
+                        None,
                     ));
                 }
             }
         }
 
         for (i, result) in results.into_iter().enumerate() {
-            let Some((mode, status)) = result else {
+            let Some((mode, status, context)) = result else {
                 continue;
             };
             let size = (self.width, self.height);
-            let observation = self.markers[i].advance(mode, status, &self.config, depth, size);
+            let m = &mut self.markers[i];
+            let observation = m.advance(mode, status, &self.config, depth, size);
+            if let (Some(c), Some(t)) = (context, m.context.as_mut())
+                && observation.status != TrackStatus::Predicted
+            {
+                t.update(frame, mode.center, CONTEXT_RATE, &mut self.patch);
+                m.context_level += CONTEXT_LEVEL_RATE * (c - m.context_level);
+            }
             self.tracks[i].observations.push(observation);
         }
         Ok(())
@@ -731,6 +843,13 @@ impl Motion {
 }
 
 impl MarkerState {
+    /// Whether the surroundings tell this marker apart: they correlate well with
+    /// themselves from frame to frame (a textured background, a fork, a target board), not
+    /// only with noise.
+    fn context_informative(&self) -> bool {
+        self.context.is_some() && self.context_level >= CONTEXT_MIN_LEVEL
+    }
+
     /// Record this frame's outcome and update the motion state.
     fn advance(
         &mut self,
@@ -745,6 +864,9 @@ impl MarkerState {
             self.coasting += 1;
             let pred = clamp_into(self.motion.predict(), width, height);
             self.motion.position = pred;
+            // A swinging branch turns back: extrapolating a release's speed for frames on end
+            // would run the prediction away from it.
+            self.motion.velocity *= COAST_VELOCITY_DECAY;
             let lost = self.coasting > config.max_coast_frames;
             self.last_status = if lost {
                 TrackStatus::Lost
@@ -823,7 +945,8 @@ fn window_px(m: &MarkerState) -> f64 {
 }
 
 /// True when `at` is on another marker's predicted place: nearer to that marker's prediction
-/// than to marker `i`'s, and within that marker's window size of it.
+/// than to marker `i`'s, and within that marker's window size of it. Only markers found in
+/// the last frame claim their prediction: a coasting marker's is a guess.
 fn nearer_to_other(
     markers: &[MarkerState],
     i: usize,
@@ -833,7 +956,7 @@ fn nearer_to_other(
     let own = (at - predictions[i]).norm();
     predictions.iter().enumerate().any(|(j, p)| {
         let d = (at - p).norm();
-        j != i && d < own && d < window_px(&markers[j])
+        j != i && markers[j].last_status.found() && d < own && d < window_px(&markers[j])
     })
 }
 
@@ -1113,19 +1236,20 @@ fn kernel_step(
     (Some(Point2::new(sx / sw, sy / sw)), rho)
 }
 
-/// The recovery search around `pred`: starts at the prediction, the last centre, and four
+/// The recovery search around `pred`: the quick pass's result, and starts at the prediction, the last centre, and four
 /// directions at half and full `radius`; each with a window twice the size, refined with the
-/// normal one. Candidates `acceptable` rejects (other markers' places) are skipped; the best
-/// by confidence
-/// times a Gaussian of the distance from the prediction (sigma = radius) wins.
+/// normal one. Candidates `judge` rejects (`None`: other markers' places) are skipped; it
+/// gives the others' context correlation if the marker has a context. The best by confidence
+/// times a Gaussian of the distance from the prediction (sigma = half the radius), times the context
+/// term, wins; it is returned with its correlation.
 fn search(
     region: &mut Region,
     config: &TrackerConfig,
     marker: &MarkerState,
-    pred: Point2<f64>,
-    radius: f64,
-    acceptable: impl Fn(Point2<f64>) -> bool,
-) -> Option<Mode> {
+    (pred, radius, sigma): (Point2<f64>, f64, f64),
+    quick: Mode,
+    mut judge: impl FnMut(Point2<f64>) -> Option<Option<f64>>,
+) -> Option<(Mode, Option<f64>)> {
     let (w, h) = marker.size;
     let big = (w * SEARCH_WINDOW_SCALE, h * SEARCH_WINDOW_SCALE);
     let mut starts = vec![pred, marker.last_center];
@@ -1135,18 +1259,23 @@ fn search(
             starts.push(Point2::new(pred.x + dx, pred.y + dy));
         }
     }
-    let mut best: Option<(f64, Mode)> = None;
-    for start in starts {
+    let mut best: Option<(f64, Mode, Option<f64>)> = None;
+    let candidates = starts.into_iter().map(|start| {
         let coarse = locate(region, config, marker, start, big);
-        let fine = locate(region, config, marker, coarse.center, (w, h));
-        if !acceptable(fine.center) {
+        locate(region, config, marker, coarse.center, (w, h))
+    });
+    for fine in std::iter::once(quick).chain(candidates) {
+        let Some(context) = judge(fine.center) else {
             continue;
-        }
-        let d = (fine.center - pred).norm() / radius;
-        let score = fine.confidence * (-0.5 * d * d).exp();
-        if best.as_ref().is_none_or(|(s, _)| score > *s) {
-            best = Some((score, fine));
+        };
+        let d = (fine.center - pred).norm() / sigma;
+        let familiarity = context.map_or(1.0, |c| {
+            ((c - marker.context_level).min(0.0) / CONTEXT_SHARPNESS).exp()
+        });
+        let score = fine.confidence * (-0.5 * d * d).exp() * familiarity;
+        if best.as_ref().is_none_or(|(s, _, _)| score > *s) {
+            best = Some((score, fine, context));
         }
     }
-    best.map(|(_, m)| m)
+    best.map(|(_, m, c)| (m, c))
 }

@@ -123,6 +123,68 @@ fn a_fast_jump_is_recovered_and_a_same_colour_neighbour_is_not_taken() {
     }
 }
 
+/// A row of look-alike targets (white squares with a black dot on a rod, 40 px apart)
+/// shifted by `offset`; the one at x = 100 sits on a hub (a dark post above and below it).
+fn target_row(offset: f64) -> RgbImage {
+    RgbImage::from_fn(260, 60, |x, y| {
+        let (xf, yf) = (f64::from(x) - offset, f64::from(y));
+        for k in 0..6 {
+            let cx = 20.0 + 40.0 * f64::from(k);
+            let (dx, dy) = (xf - cx, yf - 30.0);
+            if dx.abs() <= 2.0 && dy.abs() <= 2.0 {
+                return Rgb([10, 10, 10]);
+            }
+            if dx.abs() <= 6.0 && dy.abs() <= 6.0 {
+                return Rgb([235, 235, 235]);
+            }
+        }
+        if (xf - 100.0).abs() <= 6.0 && !(24.0..=36.0).contains(&yf) {
+            return Rgb([30, 25, 40]);
+        }
+        if (yf - 30.0).abs() <= 1.5 {
+            return Rgb([150, 60, 40]);
+        }
+        // Plain background with a faint fixed texture.
+        let t = ((x * 7 + y * 13) % 11) as u8;
+        Rgb([95 + t, 100 + t, 90 + t])
+    })
+}
+
+#[test]
+fn surroundings_tell_look_alike_targets_apart_after_a_fast_swing() {
+    // The row swings by up to 24 px a frame; on the way back the prediction lands on the
+    // neighbour, which looks the same but for the hub.
+    let offsets = [0.0, 6.0, 30.0, 8.0, -16.0, 10.0, 2.0, 0.0];
+    let frames: Vec<RgbImage> = offsets.iter().map(|&o| target_row(o)).collect();
+    let inits = [init("hub", 93, 23, 14)];
+    let track = |context_check: bool| {
+        let config = TrackerConfig {
+            context_check,
+            ..TrackerConfig::for_model(AppearanceModel::Gray { bins: 32 })
+        };
+        let mut t = Tracker::new(config, &frames[0], None, &inits).expect("valid");
+        for f in &frames[1..] {
+            t.update(f, None).expect("same size");
+        }
+        t.into_tracks().remove(0)
+    };
+    let errors = |track: &meanshift_track::Track| -> Vec<f64> {
+        track
+            .observations
+            .iter()
+            .zip(offsets)
+            .map(|(o, off)| {
+                o.center
+                    .map_or(f64::INFINITY, |c| (c.x - 100.0 - off).abs())
+            })
+            .collect()
+    };
+    let with = errors(&track(true));
+    assert!(with.iter().all(|&e| e < 1.0), "{with:?}");
+    let without = errors(&track(false));
+    assert!(without.iter().any(|&e| e > 20.0), "{without:?}");
+}
+
 #[test]
 fn depth_gating_ignores_a_same_colour_blob_at_another_depth() {
     // The marker at 1.5 m; a red blob overlapping its window at 3 m.
