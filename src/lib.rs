@@ -1,5 +1,7 @@
 #![doc = include_str!("../README.md")]
 
+#[cfg(feature = "branch-angles")]
+pub use branch_angles;
 #[cfg(feature = "kinect-io")]
 pub use kinect_io;
 #[cfg(feature = "meanshift-track")]
@@ -10,6 +12,8 @@ pub use nalgebra;
 
 /// The preludes of every enabled crate.
 pub mod prelude {
+    #[cfg(feature = "branch-angles")]
+    pub use branch_angles::prelude::*;
     #[cfg(feature = "kinect-io")]
     pub use kinect_io::prelude::*;
     #[cfg(feature = "meanshift-track")]

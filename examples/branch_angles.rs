@@ -1,0 +1,194 @@
+//! Turn 3D marker trajectories into the relative rotation angle of every branch.
+//!
+//! ```text
+//! cargo run --release --example branch_angles -- <TRAJECTORIES_CSV> <HIERARCHY_JSON> [--out angles.csv] [--signed]
+//! ```
+//!
+//! `TRAJECTORIES_CSV` has rows `t,id,x,y,z` (seconds, metres; empty x, y, z for a lost
+//! frame). `HIERARCHY_JSON` is `{"markers": [{"id": "A", "parent": null}, {"id": "C",
+//! "parent": "A"}, ...]}`. The output CSV (stdout, or `--out`) has the header
+//! `t,<child id>,...`: per child marker the angle of its branch relative to its parent branch
+//! (eq. 1 of the paper), in degrees, an empty cell where it is unknown; with `--signed` two
+//! columns per child, `<id>_u` and `<id>_w`, the signed tilts from the rest pose. Gaps are
+//! reported on stderr. Children of the root are measured against +Z (the tree frame's up).
+//!
+//! With no arguments it runs on a synthetic two-level hierarchy with known swinging angles and
+//! prints the error of each output.
+
+use std::path::PathBuf;
+
+use treemocap::branch_angles::csv::{
+    angle_columns, angles_to_csv, read_text, read_trajectories_csv, write_text,
+};
+use treemocap::branch_angles::{
+    AngleConfig, AngleSet, Hierarchy, Series, branch_angles, synthetic,
+};
+
+const USAGE: &str =
+    "usage: branch_angles <TRAJECTORIES_CSV> <HIERARCHY_JSON> [--out angles.csv] [--signed]
+
+Computes the angle of every branch relative to its parent branch (eq. 1 of the paper, degrees)
+from marker trajectories (CSV rows t,id,x,y,z; empty x,y,z for a lost frame) and a marker
+hierarchy ({\"markers\": [{\"id\": \"A\", \"parent\": null}, ...]}). --signed writes the signed
+tilts <id>_u, <id>_w from the rest pose instead. Short gaps (up to 3 frames) are filled with a
+cubic; longer ones stay empty and are reported on stderr.
+With no arguments: a synthetic two-level tree with known angles, and the error.";
+
+struct Args {
+    trajectories: PathBuf,
+    hierarchy: PathBuf,
+    out: Option<PathBuf>,
+    signed: bool,
+}
+
+fn parse_args() -> Result<Option<Option<Args>>, String> {
+    let mut positional = Vec::new();
+    let (mut out, mut signed) = (None, false);
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "-h" | "--help" => return Ok(None),
+            "--out" => out = Some(PathBuf::from(it.next().ok_or("--out needs a file")?)),
+            "--signed" => signed = true,
+            other if other.starts_with('-') => {
+                return Err(format!("unknown option {other:?}\n\n{USAGE}"));
+            }
+            _ => positional.push(PathBuf::from(a)),
+        }
+    }
+    match positional.as_slice() {
+        [] if out.is_none() && !signed => Ok(Some(None)),
+        [t, h] => Ok(Some(Some(Args {
+            trajectories: t.clone(),
+            hierarchy: h.clone(),
+            out,
+            signed,
+        }))),
+        other => Err(format!(
+            "expected TRAJECTORIES_CSV and HIERARCHY_JSON, got {} paths\n\n{USAGE}",
+            other.len()
+        )),
+    }
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    match parse_args()? {
+        None => {
+            println!("{USAGE}");
+            Ok(())
+        }
+        Some(None) => synthetic_demo(),
+        Some(Some(args)) => run(&args),
+    }
+}
+
+fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
+    let at = |p: &PathBuf, e: &dyn std::fmt::Display| format!("{}: {e}", p.display());
+    let trajectories = read_trajectories_csv(&read_text(&args.trajectories)?)
+        .map_err(|e| at(&args.trajectories, &e))?;
+    let hierarchy =
+        Hierarchy::from_json(&read_text(&args.hierarchy)?).map_err(|e| at(&args.hierarchy, &e))?;
+    let config = AngleConfig {
+        signed: args.signed,
+        ..AngleConfig::default()
+    };
+    let set = branch_angles(&hierarchy, &trajectories, &config)?;
+    report(&set);
+    let text = angles_to_csv(&set.times_s, &angle_columns(&set, args.signed));
+    match &args.out {
+        Some(path) => write_text(path, &text)?,
+        None => print!("{text}"),
+    }
+    Ok(())
+}
+
+/// Gaps and degenerate samples on stderr.
+fn report(set: &AngleSet) {
+    for g in &set.gaps {
+        eprintln!(
+            "gap: marker {} lost for {} frame(s), {} s .. {} s, {}",
+            g.marker,
+            g.samples,
+            g.start_s,
+            g.end_s,
+            if g.filled { "filled" } else { "left empty" }
+        );
+    }
+    for b in &set.branches {
+        if b.degenerate_samples > 0 {
+            eprintln!(
+                "branch {}: {} sample(s) with a segment too short for a direction, left empty",
+                b.child, b.degenerate_samples
+            );
+        }
+    }
+}
+
+/// Largest |estimate - truth| in degrees over the known samples.
+fn max_error_deg(series: &Series, truth: &[f64]) -> f64 {
+    series
+        .values
+        .iter()
+        .zip(truth)
+        .filter_map(|(v, t)| v.map(|v| (v - t).abs().to_degrees()))
+        .fold(0.0, f64::max)
+}
+
+/// Swing frequency from the mean-crossings of the series after `from_s` (hertz).
+fn crossing_frequency_hz(series: &Series, from_s: f64) -> f64 {
+    let pts: Vec<(f64, f64)> = series
+        .times_s
+        .iter()
+        .zip(&series.values)
+        .filter_map(|(&t, v)| v.filter(|_| t > from_s).map(|v| (t, v)))
+        .collect();
+    if pts.len() < 3 {
+        return 0.0;
+    }
+    let mean = pts.iter().map(|p| p.1).sum::<f64>() / pts.len() as f64;
+    let crossings: Vec<f64> = pts
+        .windows(2)
+        .filter(|w| (w[0].1 - mean) * (w[1].1 - mean) < 0.0)
+        .map(|w| w[0].0 + (w[1].0 - w[0].0) * (mean - w[0].1) / (w[1].1 - w[0].1))
+        .collect();
+    match (crossings.first(), crossings.last()) {
+        (Some(a), Some(b)) if crossings.len() > 2 => (crossings.len() - 1) as f64 / (2.0 * (b - a)),
+        _ => 0.0,
+    }
+}
+
+fn synthetic_demo() -> Result<(), Box<dyn std::error::Error>> {
+    let tree = synthetic::two_level();
+    let config = AngleConfig {
+        rest: tree.rest,
+        ..AngleConfig::default()
+    };
+    let set = branch_angles(&tree.hierarchy, &tree.trajectories, &config)?;
+    println!(
+        "synthetic two-level tree: {} markers, {} samples at {} Hz, release at 0.5 s",
+        tree.hierarchy.markers().len(),
+        tree.trajectories.times_s().len(),
+        synthetic::PAPER_RATE_HZ
+    );
+    println!(
+        "branch  parent  max error eq.(1)  max error u  max error w  true f   f from eq.(1)  f from u"
+    );
+    for (b, t) in set.branches.iter().zip(&tree.truth) {
+        let signed = b.signed.as_ref().ok_or("signed angles are on by default")?;
+        println!(
+            "{:6}  {:6}  {:14.2e}°  {:9.2e}°  {:9.2e}°  {:4.2} Hz  {:10.2} Hz  {:5.2} Hz",
+            b.child,
+            b.parent,
+            max_error_deg(&b.angle_rad, &t.angle_rad),
+            max_error_deg(&signed.u_rad, &t.u_rad),
+            max_error_deg(&signed.w_rad, &t.w_rad),
+            t.frequency_hz,
+            crossing_frequency_hz(&b.angle_rad, 0.5),
+            crossing_frequency_hz(&signed.u_rad, 0.5),
+        );
+    }
+    println!(
+        "E is aligned with its parent at rest: eq. (1) folds its ±5° swing to twice the frequency; the signed u keeps it."
+    );
+    Ok(())
+}
