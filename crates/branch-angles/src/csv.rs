@@ -97,7 +97,8 @@ pub fn read_trajectories_csv(text: &str) -> Result<Trajectories> {
                 format!("{} fields, expected 5 ({TRAJECTORY_HEADER})", f.len()),
             ));
         }
-        let t = number(line, "t", f[0])?;
+        // Adding 0 turns -0 into 0, so that the two are one timestamp of the time base.
+        let t = number(line, "t", f[0])? + 0.0;
         let id = f[1].trim();
         if !valid_id(id) {
             return Err(AngleError::csv(line, format!("invalid id {id:?}")));
@@ -147,9 +148,9 @@ pub fn read_trajectories_csv(text: &str) -> Result<Trajectories> {
         .map(|id| {
             let mut positions = vec![None; times.len()];
             for &(t, p, _) in &rows[id] {
-                // Present: every row's time is in the union.
-                if let Ok(k) = times.binary_search_by(|x| x.total_cmp(&t)) {
-                    positions[k] = p;
+                // Every row's time is in the union (no -0 left, no NaN).
+                if let Some(slot) = positions.get_mut(times.partition_point(|x| *x < t)) {
+                    *slot = p;
                 }
             }
             MarkerTrack {

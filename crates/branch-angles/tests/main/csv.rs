@@ -21,6 +21,10 @@ fn trajectories_round_trip_exactly_with_lost_frames() {
     assert!(t.marker("A").expect("A").positions_m[1].is_none());
     // B has no row at 0.1: lost there.
     assert!(t.marker("B").expect("B").positions_m[1].is_none());
+    // -0 and 0 are one timestamp; no row is dropped.
+    let t = read_trajectories_csv("t,id,x,y,z\n-0,A,1,2,3\n0,B,4,5,6\n").expect("valid");
+    assert_eq!(t.times_s().len(), 1);
+    assert!(t.markers().iter().all(|m| m.positions_m[0].is_some()));
 }
 
 #[test]
