@@ -1236,12 +1236,13 @@ fn kernel_step(
     (Some(Point2::new(sx / sw, sy / sw)), rho)
 }
 
-/// The recovery search around `pred`: the quick pass's result, and starts at the prediction, the last centre, and four
-/// directions at half and full `radius`; each with a window twice the size, refined with the
-/// normal one. Candidates `judge` rejects (`None`: other markers' places) are skipped; it
-/// gives the others' context correlation if the marker has a context. The best by confidence
-/// times a Gaussian of the distance from the prediction (sigma = half the radius), times the context
-/// term, wins; it is returned with its correlation.
+/// The recovery search around `pred`: the quick pass's result, and starts at the prediction,
+/// the last centre, and four directions at half and full `radius`, each with a window twice
+/// the size, refined with the normal one. Candidates `judge` rejects (`None`: other markers'
+/// places) are skipped; for the others it gives the context correlation when the marker's
+/// surroundings are informative. The best by confidence, times a Gaussian of the distance
+/// from the prediction (`sigma`: half the search radius before any widening), times the
+/// context term, wins; it is returned with its correlation.
 fn search(
     region: &mut Region,
     config: &TrackerConfig,
