@@ -6,6 +6,8 @@ pub use branch_angles;
 pub use kinect_io;
 #[cfg(feature = "meanshift-track")]
 pub use meanshift_track;
+#[cfg(feature = "modal-estimate")]
+pub use modal_estimate;
 
 pub use image;
 pub use nalgebra;
@@ -18,4 +20,6 @@ pub mod prelude {
     pub use kinect_io::prelude::*;
     #[cfg(feature = "meanshift-track")]
     pub use meanshift_track::prelude::*;
+    #[cfg(feature = "modal-estimate")]
+    pub use modal_estimate::prelude::*;
 }
