@@ -4,4 +4,5 @@ mod ambient;
 mod bad_input;
 mod cramer_rao;
 mod monte_carlo;
+mod multimode;
 mod paper;
