@@ -160,11 +160,23 @@ pub(crate) fn dominant_frequency(u: &UniformSignal, low_hz: f64, high_hz: f64) -
         values: d,
         interpolated: 0,
     };
+    most_prominent(&du, Window::Hann, Detrend::Mean, low_hz, high_hz)
+}
+
+/// The refined frequency of the most prominent peak in `low_hz..=high_hz` of an amplitude
+/// spectrum with 4x padding.
+fn most_prominent(
+    u: &UniformSignal,
+    window: Window,
+    detrend: Detrend,
+    low_hz: f64,
+    high_hz: f64,
+) -> Option<f64> {
     let s = spectrum_uniform(
-        &du,
+        u,
         &SpectrumConfig {
-            window: Window::Hann,
-            detrend: Detrend::Mean,
+            window,
+            detrend,
             zero_padding: 4,
             scaling: Scaling::Amplitude,
         },
@@ -184,19 +196,7 @@ pub(crate) fn peak_frequency(signal: &Signal, low_hz: f64, high_hz: f64) -> Opti
     if u.values.len() < 4 {
         return None;
     }
-    let s = spectrum_uniform(
-        &u,
-        &SpectrumConfig {
-            window: Window::Rectangular,
-            detrend: Detrend::Linear,
-            zero_padding: 4,
-            scaling: Scaling::Amplitude,
-        },
-    );
-    s.peaks_in(low_hz, high_hz, 0.0)
-        .iter()
-        .max_by(|a, b| a.prominence.total_cmp(&b.prominence))
-        .map(|p| p.refined_frequency_hz)
+    most_prominent(&u, Window::Rectangular, Detrend::Linear, low_hz, high_hz)
 }
 
 /// What the motion envelope says about a record: the release of a held stretch (if any) and
