@@ -8,6 +8,8 @@ pub use kinect_io;
 pub use meanshift_track;
 #[cfg(feature = "modal-estimate")]
 pub use modal_estimate;
+#[cfg(feature = "space-colonize")]
+pub use space_colonize;
 
 pub use image;
 pub use nalgebra;
@@ -22,4 +24,6 @@ pub mod prelude {
     pub use meanshift_track::prelude::*;
     #[cfg(feature = "modal-estimate")]
     pub use modal_estimate::prelude::*;
+    #[cfg(feature = "space-colonize")]
+    pub use space_colonize::prelude::*;
 }

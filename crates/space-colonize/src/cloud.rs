@@ -1,0 +1,329 @@
+//! The attraction points: validation, spacing, trunk radius, outlier clusters, k-d tree.
+
+use std::collections::HashMap;
+
+use kiddo::SquaredEuclidean;
+use kiddo::immutable::float::kdtree::ImmutableKdTree;
+use nalgebra::{Matrix3, Point3};
+
+use crate::circle::fit_circle;
+use crate::config::{
+    ColonizeConfig, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, MAX_GAP_INFLUENCES,
+    MIN_KILL_SPACINGS, MIN_STEP_PER_KILL, Parameters, STEP_SPACINGS,
+};
+use crate::error::{ColonizeError, Result};
+
+/// Static k-d tree over points, items are indices.
+pub(crate) type PointTree = ImmutableKdTree<f64, u32, 3, 32>;
+
+/// Fewest points a reconstruction accepts.
+pub const MIN_POINTS: usize = 10;
+/// Spacing is measured on at most this many points (a deterministic stride), enough for a
+/// median to three digits.
+const SPACING_SAMPLE: usize = 20_000;
+/// Smallest principal standard deviation accepted, relative to the largest: a tree is
+/// never flat to a thousandth of its size.
+const MIN_RELATIVE_THICKNESS: f64 = 1e-3;
+/// Smallest principal standard deviation accepted in absolute terms, metres.
+const MIN_THICKNESS_M: f64 = 1e-6;
+
+/// A cloud ready for growth.
+pub(crate) struct Prepared {
+    pub pts: Vec<[f64; 3]>,
+    pub tree: PointTree,
+    /// Points of the main cluster (the rest are outliers beyond the largest bridge).
+    pub main: Vec<bool>,
+    pub outliers: usize,
+    pub params: Parameters,
+}
+
+/// Validate the points and derive the parameters the config leaves open.
+pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result<Prepared> {
+    config.validate()?;
+    if let Some((index, p)) = points
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !p.iter().all(|c| c.is_finite()))
+    {
+        return Err(ColonizeError::NonFinitePoint {
+            index,
+            x: p.x,
+            y: p.y,
+            z: p.z,
+        });
+    }
+    if points.len() < MIN_POINTS {
+        return Err(ColonizeError::TooFewPoints {
+            points: points.len(),
+            needed: MIN_POINTS,
+        });
+    }
+    if points.len() > u32::MAX as usize {
+        return Err(ColonizeError::param(
+            "points",
+            format!("{} points; at most {} supported", points.len(), u32::MAX),
+        ));
+    }
+    check_thickness(points)?;
+    let pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let tree = PointTree::new_from_slice(&pts);
+    let spacing_m = match config.spacing_m {
+        Some(s) => s,
+        None => median_spacing(&pts, &tree)?,
+    };
+    // Kill and influence need the trunk radius, the outlier clusters need the influence,
+    // and the trunk fit needs the main cluster: fit on all points first, then refit on the
+    // main cluster.
+    let base_fit = trunk_fit(&pts, None, spacing_m);
+    let first = derive(config, spacing_m, base_fit, &pts)?;
+    let main = main_cluster(&pts, first.max_gap_m);
+    let outliers = main.iter().filter(|&&m| !m).count();
+    let params = if outliers > 0 {
+        derive(
+            config,
+            spacing_m,
+            trunk_fit(&pts, Some(&main), spacing_m),
+            &pts_in(&pts, &main),
+        )?
+    } else {
+        first
+    };
+    params.validate()?;
+    Ok(Prepared {
+        pts,
+        tree,
+        main,
+        outliers,
+        params,
+    })
+}
+
+fn pts_in(pts: &[[f64; 3]], keep: &[bool]) -> Vec<[f64; 3]> {
+    pts.iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .map(|(p, _)| *p)
+        .collect()
+}
+
+/// The trunk circle near the base: centre (x, y), radius, and whether it is a fit.
+#[derive(Debug, Clone, Copy)]
+struct TrunkFit {
+    centre: [f64; 2],
+    radius_m: f64,
+    fitted: bool,
+    z_min: f64,
+}
+
+fn derive(
+    config: &ColonizeConfig,
+    spacing_m: f64,
+    fit: TrunkFit,
+    pts: &[[f64; 3]],
+) -> Result<Parameters> {
+    let (trunk_radius_m, fitted) = match config.trunk_radius_m {
+        Some(r) => (r, false),
+        None => (fit.radius_m, fit.fitted),
+    };
+    let kill_distance_m = config
+        .kill_distance_m
+        .unwrap_or((KILL_PER_TRUNK_RADIUS * trunk_radius_m).max(MIN_KILL_SPACINGS * spacing_m));
+    let twig_kill_distance_m = config
+        .twig_kill_distance_m
+        .unwrap_or(MIN_KILL_SPACINGS * spacing_m);
+    let step_m = config.step_m.unwrap_or(
+        (STEP_SPACINGS * spacing_m)
+            .max(MIN_STEP_PER_KILL * kill_distance_m)
+            .min(0.5 * kill_distance_m),
+    );
+    let influence_m = config
+        .influence_m
+        .unwrap_or(INFLUENCE_PER_KILL * kill_distance_m);
+    let max_gap_m = config.max_gap_m.unwrap_or(MAX_GAP_INFLUENCES * influence_m);
+    let root_m = match config.root {
+        Some(r) => [r.x, r.y, r.z],
+        None => [fit.centre[0], fit.centre[1], fit.z_min],
+    };
+    let n = pts.len();
+    Ok(Parameters {
+        spacing_m,
+        trunk_radius_m,
+        trunk_radius_fitted: fitted,
+        kill_distance_m,
+        twig_kill_distance_m,
+        step_m,
+        influence_m,
+        max_gap_m,
+        root_m,
+        pipe_exponent: config.pipe_exponent,
+        min_twig_m: config.min_twig_m.unwrap_or(2.0 * spacing_m),
+        max_iterations: config.max_iterations.unwrap_or(2 * n + 10_000),
+        max_nodes: config.max_nodes.unwrap_or(2 * n + 10_000),
+    })
+}
+
+fn check_thickness(points: &[Point3<f64>]) -> Result<()> {
+    let n = points.len() as f64;
+    let mean = points
+        .iter()
+        .fold(nalgebra::Vector3::zeros(), |a, p| a + p.coords)
+        / n;
+    let mut cov = Matrix3::<f64>::zeros();
+    for p in points {
+        let d = p.coords - mean;
+        cov += d * d.transpose();
+    }
+    cov /= n;
+    let mut ev: Vec<f64> = cov
+        .symmetric_eigenvalues()
+        .iter()
+        .map(|v| v.max(0.0).sqrt())
+        .collect();
+    ev.sort_by(|a, b| b.total_cmp(a));
+    let min_m = (MIN_RELATIVE_THICKNESS * ev[0]).max(MIN_THICKNESS_M);
+    if ev[2] < min_m || !ev[0].is_finite() {
+        return Err(ColonizeError::Degenerate {
+            extents_m: [ev[0], ev[1], ev[2]],
+            min_m,
+        });
+    }
+    Ok(())
+}
+
+fn median_spacing(pts: &[[f64; 3]], tree: &PointTree) -> Result<f64> {
+    let stride = pts.len().div_ceil(SPACING_SAMPLE).max(1);
+    let k = std::num::NonZeroUsize::MIN.saturating_add(1);
+    let mut d: Vec<f64> = pts
+        .iter()
+        .step_by(stride)
+        .filter_map(|p| {
+            tree.nearest_n::<SquaredEuclidean>(p, k)
+                .iter()
+                .map(|nb| nb.distance)
+                .find(|&d2| d2 > 0.0)
+                .map(f64::sqrt)
+        })
+        .collect();
+    if d.is_empty() {
+        return Err(ColonizeError::Degenerate {
+            extents_m: [0.0; 3],
+            min_m: MIN_THICKNESS_M,
+        });
+    }
+    d.sort_by(f64::total_cmp);
+    Ok(d[d.len() / 2])
+}
+
+/// Circle fitted in x–y to a slice of the lowest points: from 2 spacings above the lowest
+/// point, 12 spacings or 4 % of the height thick, whichever is more.
+fn trunk_fit(pts: &[[f64; 3]], keep: Option<&[bool]>, spacing_m: f64) -> TrunkFit {
+    let kept = |i: usize| keep.is_none_or(|k| k[i]);
+    let (mut z_min, mut z_max) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (i, p) in pts.iter().enumerate() {
+        if kept(i) {
+            z_min = z_min.min(p[2]);
+            z_max = z_max.max(p[2]);
+        }
+    }
+    let lo = z_min + 2.0 * spacing_m;
+    let hi = lo + (12.0 * spacing_m).max(0.04 * (z_max - z_min));
+    let mut slice: Vec<[f64; 2]> = pts
+        .iter()
+        .enumerate()
+        .filter(|(i, p)| kept(*i) && p[2] >= lo && p[2] <= hi)
+        .map(|(_, p)| [p[0], p[1]])
+        .collect();
+    if slice.len() < 5 {
+        // Too thin a slice: take the lowest points up to `hi`.
+        slice = pts
+            .iter()
+            .enumerate()
+            .filter(|(i, p)| kept(*i) && p[2] <= hi)
+            .map(|(_, p)| [p[0], p[1]])
+            .collect();
+    }
+    let n = slice.len().max(1) as f64;
+    let cx = slice.iter().map(|p| p[0]).sum::<f64>() / n;
+    let cy = slice.iter().map(|p| p[1]).sum::<f64>() / n;
+    let spread = slice
+        .iter()
+        .map(|p| (p[0] - cx).hypot(p[1] - cy))
+        .sum::<f64>()
+        / n;
+    if let Some(c) = fit_circle(&slice)
+        && c.radius_m < 4.0 * spread.max(spacing_m)
+        && c.rms_m < 0.5 * c.radius_m
+        && c.coverage >= 0.25
+        && c.radius_m >= 0.5 * spacing_m
+    {
+        return TrunkFit {
+            centre: c.centre,
+            radius_m: c.radius_m,
+            fitted: true,
+            z_min,
+        };
+    }
+    // Fallback: the mean distance to the centroid (the radius for a full ring).
+    TrunkFit {
+        centre: [cx, cy],
+        radius_m: spread.max(spacing_m),
+        fitted: false,
+        z_min,
+    }
+}
+
+/// Points of the largest cluster, clusters linked when within about `gap_m` (occupied
+/// cells of a grid of that size, joined with their 26 neighbours). O(n).
+fn main_cluster(pts: &[[f64; 3]], gap_m: f64) -> Vec<bool> {
+    let key = |p: &[f64; 3]| {
+        (
+            (p[0] / gap_m).floor() as i64,
+            (p[1] / gap_m).floor() as i64,
+            (p[2] / gap_m).floor() as i64,
+        )
+    };
+    let mut cells: HashMap<(i64, i64, i64), usize> = HashMap::new();
+    let mut cell_of = Vec::with_capacity(pts.len());
+    let mut counts: Vec<usize> = Vec::new();
+    for p in pts {
+        let next = cells.len();
+        let c = *cells.entry(key(p)).or_insert(next);
+        if c == counts.len() {
+            counts.push(0);
+        }
+        counts[c] += 1;
+        cell_of.push(c);
+    }
+    let mut parent: Vec<usize> = (0..cells.len()).collect();
+    fn find(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for (&(x, y, z), &c) in &cells {
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(&o) = cells.get(&(x + dx, y + dy, z + dz)) {
+                        let (a, b) = (find(&mut parent, c), find(&mut parent, o));
+                        if a != b {
+                            parent[a] = b;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut size = vec![0usize; cells.len()];
+    for (c, &count) in counts.iter().enumerate() {
+        let r = find(&mut parent, c);
+        size[r] += count;
+    }
+    let best = (0..cells.len()).max_by_key(|&r| size[r]).unwrap_or(0);
+    cell_of
+        .iter()
+        .map(|&c| find(&mut parent, c) == best)
+        .collect()
+}

@@ -1,0 +1,83 @@
+//! A static tree model from a point cloud (paper, section 6.1): space colonization
+//! (Runions, Lane, Prusinkiewicz 2007) grows the skeleton from the cloud, branches form a
+//! hierarchy with orders (the paper's levels), radii follow the pipe model, and the geometry
+//! is generalized cylinders. The model measures its own fidelity to the cloud.
+//!
+//! Place in the pipeline: kinect-io gives the point cloud (one frame or several merged);
+//! this crate gives the [`Skeleton`] that beam-anim animates.
+//!
+//! - [`reconstruct`] with [`ColonizeConfig`] (every parameter derived from the cloud unless
+//!   set, see [`Parameters`]):
+//!   1. validation, median point spacing, trunk radius from a circle fitted to the lowest
+//!      slice, clusters beyond the largest bridge set aside as outliers;
+//!   2. space colonization with k-d trees (kiddo): kill distance ≈ 1.2 trunk radii, step
+//!      1.5 spacings, influence 2.75 kill distances; only points near new nodes are
+//!      revisited, so growth costs O(n log n); gaps (occlusions, one-sided views) are
+//!      crossed by the shortest straight bridge, never by growth toward nothing; an
+//!      iteration and a node bound end it with an error if ever hit;
+//!   3. tips extended to the last points they reached, nodes moved onto the branch axis
+//!      (circle fits across the branch; centroids where a branch is too thin), smoothed;
+//!   4. a second, fine pass grows the twigs shorter than the first kill distance toward the
+//!      points still more than 2 cm off the model;
+//!   5. radii: the pipe model r_parent^e = Σ r_child^e (e = 2.5) anchored at the fitted trunk
+//!      base and, by default, at every radius a circle fit measures along a branch (a
+//!      straight taper fitted per chain); stubs that do not reach beyond their parent's
+//!      surface are removed.
+//! - [`Skeleton`]: nodes with parents and radii, [`Branch`]es (chains continuing through each
+//!   fork along the child carrying the most tree), orders, lengths, JSON files.
+//! - [`metrics`]: point-to-surface distances (mean, median, p95, shares within 1/2/5 cm),
+//!   the share of model length near the cloud, length, volume.
+//! - [`cylinders`] (TreeQSM-style table, [`cylinders_to_csv`]) and [`tube_mesh`] (OBJ, PLY).
+//! - [`synthetic`] trees with a known skeleton, and [`synthetic::skeleton_error`].
+//!
+//! Units: metres; the tree frame is right-handed with Z up. Nothing here panics on input:
+//! bad clouds and parameters are [`ColonizeError`]s.
+//!
+//! ```
+//! use space_colonize::synthetic::{SyntheticConfig, skeleton_error};
+//! use space_colonize::{ColonizeConfig, metrics, reconstruct};
+//!
+//! let truth = SyntheticConfig { points: 8_000, max_order: 2, ..Default::default() }.generate()?;
+//! let model = reconstruct(&truth.points, &ColonizeConfig::default())?;
+//! let m = metrics(&truth.points, &model.skeleton);
+//! assert!(m.within_2cm > 0.97, "{m:?}");
+//! let e = skeleton_error(&model.skeleton, &truth.skeleton);
+//! assert!(e.mean_skeleton_error_m < 0.02, "{e:?}");
+//! # Ok::<(), space_colonize::ColonizeError>(())
+//! ```
+
+mod circle;
+mod cloud;
+mod config;
+mod error;
+mod geometry;
+mod grow;
+mod metrics;
+mod reconstruct;
+mod refine;
+mod skeleton;
+pub mod synthetic;
+
+pub use cloud::MIN_POINTS;
+pub use config::{
+    ColonizeConfig, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, MAX_GAP_INFLUENCES,
+    MIN_KILL_SPACINGS, MIN_STEP_PER_KILL, PIPE_EXPONENT, Parameters, STEP_SPACINGS,
+};
+pub use error::{ColonizeError, Result};
+pub use reconstruct::{
+    GrowthReport, Reconstruction, Stage, reconstruct, reconstruct_with_progress,
+};
+pub use skeleton::{Branch, Skeleton, SkeletonNode};
+
+pub use geometry::{
+    Cylinder, DEFAULT_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv, tube_mesh,
+};
+pub use metrics::{Metrics, NEAR_CLOUD_M, metrics};
+
+/// The types most programs need.
+pub mod prelude {
+    pub use crate::{
+        Branch, ColonizeConfig, ColonizeError, Metrics, Reconstruction, Skeleton, SkeletonNode,
+        metrics, reconstruct,
+    };
+}

@@ -1,0 +1,189 @@
+//! How close a model is to its cloud: point-to-surface distances, model parts near the cloud,
+//! length, volume, branches by order.
+
+use kiddo::SquaredEuclidean;
+use kiddo::immutable::float::kdtree::ImmutableKdTree;
+use nalgebra::{Point3, Vector3};
+use serde::Serialize;
+
+use crate::skeleton::Skeleton;
+
+/// A model part is "near the cloud" when its surface is within this of a point, metres
+/// (the 2 cm).
+pub const NEAR_CLOUD_M: f64 = 0.02;
+/// Cylinders examined per point (nearest by midpoint); the nearest surface is among them
+/// for segments no longer than the spacing of the nodes.
+const CANDIDATE_CYLINDERS: usize = 8;
+
+/// Fidelity of a model to a cloud.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Metrics {
+    /// Points measured.
+    pub points: usize,
+    /// Mean distance from a point to the model surface, metres.
+    pub mean_distance_m: f64,
+    /// Median of it, metres.
+    pub median_distance_m: f64,
+    /// 95th percentile, metres.
+    pub p95_distance_m: f64,
+    /// Largest, metres.
+    pub max_distance_m: f64,
+    /// Share of points within 1 cm of the surface.
+    pub within_1cm: f64,
+    /// Share within 2 cm.
+    pub within_2cm: f64,
+    /// Share within 5 cm.
+    pub within_5cm: f64,
+    /// Share of the model's length whose surface is within [`NEAR_CLOUD_M`] of a point.
+    pub length_near_cloud: f64,
+    /// Largest distance from a model part (a segment's mid-axis, less its radius) to the
+    /// nearest point, metres.
+    pub max_model_gap_m: f64,
+    /// Sum of segment lengths, metres.
+    pub total_length_m: f64,
+    /// Volume of the cylinders, litres (the unit tree-modelling tools report).
+    pub volume_l: f64,
+}
+
+/// Distance from `q` to the lateral surface of a cylinder (start `a`, unit axis `u`, length
+/// `len`, radius `r`); beyond an end, the distance to its rim.
+pub(crate) fn surface_distance(
+    q: &Vector3<f64>,
+    a: &Vector3<f64>,
+    u: &Vector3<f64>,
+    len: f64,
+    r: f64,
+) -> f64 {
+    let v = q - a;
+    let t = v.dot(u);
+    let radial = (v - u * t).norm();
+    let axial = if t < 0.0 {
+        -t
+    } else if t > len {
+        t - len
+    } else {
+        0.0
+    };
+    (radial - r).hypot(axial)
+}
+
+/// Distance from each point to the nearest cylinder surface of a skeleton, metres
+/// (infinite when the skeleton has no segment).
+pub(crate) fn point_distances(pts: &[[f64; 3]], skeleton: &Skeleton) -> Vec<f64> {
+    let cyls = cylinders(skeleton);
+    distances(pts.iter().map(|p| Vector3::from(*p)), &cyls)
+}
+
+struct Cyl {
+    a: Vector3<f64>,
+    u: Vector3<f64>,
+    len: f64,
+    r: f64,
+}
+
+fn cylinders(skeleton: &Skeleton) -> Vec<Cyl> {
+    let nodes = skeleton.nodes();
+    nodes
+        .iter()
+        .filter_map(|x| {
+            let p = nodes[x.parent?].position.coords;
+            let d = x.position.coords - p;
+            let len = d.norm();
+            (len > 0.0).then(|| Cyl {
+                a: p,
+                u: d / len,
+                len,
+                r: x.radius_m,
+            })
+        })
+        .collect()
+}
+
+fn midpoints(cyls: &[Cyl]) -> Vec<[f64; 3]> {
+    cyls.iter()
+        .map(|c| {
+            let m = c.a + c.u * (0.5 * c.len);
+            [m.x, m.y, m.z]
+        })
+        .collect()
+}
+
+fn distances(points: impl Iterator<Item = Vector3<f64>>, cyls: &[Cyl]) -> Vec<f64> {
+    if cyls.is_empty() {
+        return points.map(|_| f64::INFINITY).collect();
+    }
+    let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&midpoints(cyls));
+    let k = std::num::NonZeroUsize::new(CANDIDATE_CYLINDERS.min(cyls.len()))
+        .unwrap_or(std::num::NonZeroUsize::MIN);
+    points
+        .map(|q| {
+            tree.nearest_n::<SquaredEuclidean>(&[q.x, q.y, q.z], k)
+                .iter()
+                .map(|nb| {
+                    let c = &cyls[nb.item as usize];
+                    surface_distance(&q, &c.a, &c.u, c.len, c.r)
+                })
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect()
+}
+
+/// Measure a skeleton's cylinders against the points.
+pub fn metrics(points: &[Point3<f64>], skeleton: &Skeleton) -> Metrics {
+    let cyls = cylinders(skeleton);
+    let total_length_m: f64 = cyls.iter().map(|c| c.len).sum();
+    let volume_l = cyls
+        .iter()
+        .map(|c| std::f64::consts::PI * c.r * c.r * c.len)
+        .sum::<f64>()
+        * 1000.0;
+    let mids = midpoints(&cyls);
+    let mut dist = if cyls.is_empty() {
+        Vec::new()
+    } else {
+        distances(points.iter().map(|p| p.coords), &cyls)
+    };
+    let (mut length_near, mut max_gap) = (0.0, 0.0_f64);
+    if !points.is_empty() {
+        let pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&pts);
+        for (c, m) in cyls.iter().zip(&mids) {
+            let d = tree.nearest_one::<SquaredEuclidean>(m).distance.sqrt();
+            let gap = (d - c.r).max(0.0);
+            max_gap = max_gap.max(gap);
+            if gap <= NEAR_CLOUD_M {
+                length_near += c.len;
+            }
+        }
+    }
+    let n = dist.len().max(1) as f64;
+    let share = |lim: f64| dist.iter().filter(|&&d| d <= lim).count() as f64 / n;
+    let mean = dist.iter().sum::<f64>() / n;
+    let (w1, w2, w5) = (share(0.01), share(0.02), share(0.05));
+    dist.sort_by(f64::total_cmp);
+    let pick = |q: f64| {
+        if dist.is_empty() {
+            f64::NAN
+        } else {
+            dist[((q * (dist.len() - 1) as f64).round() as usize).min(dist.len() - 1)]
+        }
+    };
+    Metrics {
+        points: points.len(),
+        mean_distance_m: mean,
+        median_distance_m: pick(0.5),
+        p95_distance_m: pick(0.95),
+        max_distance_m: dist.last().copied().unwrap_or(f64::NAN),
+        within_1cm: w1,
+        within_2cm: w2,
+        within_5cm: w5,
+        length_near_cloud: if total_length_m > 0.0 {
+            length_near / total_length_m
+        } else {
+            0.0
+        },
+        max_model_gap_m: max_gap,
+        total_length_m,
+        volume_l,
+    }
+}

@@ -1,0 +1,205 @@
+//! The whole reconstruction: prepare, grow, refine.
+
+use nalgebra::{Point3, Vector3};
+use serde::Serialize;
+
+use crate::cloud::prepare;
+use crate::config::INFLUENCE_PER_KILL;
+use crate::config::{ColonizeConfig, Parameters};
+use crate::error::{ColonizeError, Result};
+use crate::grow::{Pass, grow};
+use crate::refine::{Graph, twig_stubs};
+use crate::skeleton::{Branch, Skeleton};
+
+/// Laplacian passes on the grown nodes before centring.
+const PRE_CENTRING_PASSES: usize = 3;
+
+/// The twig pass attracts only points at least this far from the first model's surface,
+/// metres: closer ones are the first model's radius and centring error, not missing twigs
+/// (the 2 cm fidelity bound).
+const TWIG_PASS_MIN_DISTANCE_M: f64 = crate::metrics::NEAR_CLOUD_M;
+
+/// Stages reported to a progress callback, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[non_exhaustive]
+pub enum Stage {
+    /// Validation, spacing, trunk radius, outlier clusters, k-d tree.
+    Prepare,
+    /// Space colonization.
+    Grow,
+    /// Tips, centring, smoothing.
+    Refine,
+    /// Radii, pruning, branches.
+    Radii,
+}
+
+/// What growth did.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct GrowthReport {
+    /// Iterations of the growth loop.
+    pub iterations: usize,
+    /// Nodes grown (before refinement).
+    pub grown_nodes: usize,
+    /// Straight bridges across gaps.
+    pub bridges: usize,
+    /// Total length of the bridges, metres.
+    pub bridged_length_m: f64,
+    /// Points in clusters beyond the largest bridge from the main cluster (not modelled).
+    pub outlier_points: usize,
+    /// Points of the main cluster growth never reached.
+    pub unreached_points: usize,
+    /// Points given up because their node could not move toward them.
+    pub abandoned_points: usize,
+    /// Terminal stubs removed.
+    pub pruned_twigs: usize,
+}
+
+/// A reconstructed tree.
+#[derive(Debug, Clone)]
+pub struct Reconstruction {
+    /// Nodes, parents, radii.
+    pub skeleton: Skeleton,
+    /// Branches with orders and lengths ([`Skeleton::branches`]).
+    pub branches: Vec<Branch>,
+    /// The parameters used (derived where the config left them open).
+    pub parameters: Parameters,
+    /// What growth did.
+    pub growth: GrowthReport,
+}
+
+impl Reconstruction {
+    /// Number of branches of each order, index = order.
+    pub fn branches_by_order(&self) -> Vec<usize> {
+        let max = self.branches.iter().map(|b| b.order).max().unwrap_or(0);
+        let mut v = vec![0; max + 1];
+        for b in &self.branches {
+            v[b.order] += 1;
+        }
+        v
+    }
+}
+
+/// Reconstruct a tree from its points (metres, Z up).
+///
+/// # Errors
+/// Bad points or parameters ([`ColonizeError::NonFinitePoint`], [`ColonizeError::TooFewPoints`],
+/// [`ColonizeError::Degenerate`], [`ColonizeError::InvalidParameter`]), growth bounds
+/// ([`ColonizeError::IterationLimit`], [`ColonizeError::NodeLimit`]), or
+/// [`ColonizeError::NoGrowth`] when nothing grew from the root.
+pub fn reconstruct(points: &[Point3<f64>], config: &ColonizeConfig) -> Result<Reconstruction> {
+    reconstruct_with_progress(points, config, &mut |_| {})
+}
+
+/// [`reconstruct`], calling `progress` as each stage starts.
+///
+/// # Errors
+/// As [`reconstruct`].
+pub fn reconstruct_with_progress(
+    points: &[Point3<f64>],
+    config: &ColonizeConfig,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<Reconstruction> {
+    progress(Stage::Prepare);
+    let prep = prepare(points, config)?;
+    progress(Stage::Grow);
+    let p = prep.params;
+    let g = grow(
+        &prep,
+        Pass {
+            seeds: (&[], &[]),
+            attract: prep.main.clone(),
+            kill_m: p.kill_distance_m,
+            influence_m: p.influence_m,
+            bridges: true,
+        },
+    )?;
+    if g.positions.len() < 2 {
+        return Err(ColonizeError::NoGrowth {
+            points: prep.main.iter().filter(|&&m| m).count(),
+            kill_distance_m: p.kill_distance_m,
+        });
+    }
+    progress(Stage::Refine);
+    let mut graph = Graph {
+        pos: g.positions.iter().map(|x| Vector3::from(*x)).collect(),
+        parent: g.parents.clone(),
+    };
+    let refine = |graph: &mut Graph, from: usize| {
+        graph.extend_tips(&prep.pts, &prep.main, &p, from);
+        // SC nodes zig-zag between the attractors of successive steps: straighten them
+        // before centring, then remove the centring noise without shrinking bends.
+        graph.smooth_from(PRE_CENTRING_PASSES, from, false);
+        if config.centring {
+            graph.centre(&prep.pts, &prep.main, &p, from);
+        }
+        graph.smooth_from(config.smoothing_iterations, from, true);
+    };
+    refine(&mut graph, 0);
+    let radii = |graph: &Graph| {
+        let fits = config
+            .radius_fits
+            .then(|| graph.fit_radii(&prep.pts, &prep.main, &p));
+        graph.to_skeleton(p.pipe_exponent, p.trunk_radius_m, fits.as_deref())
+    };
+    let mut skeleton = radii(&graph)?;
+    // Twigs shorter than the kill distance were never grown: their points sit off the
+    // model. Grow once more from the whole skeleton toward those, with a fine kill distance.
+    let mut twig_growth = None;
+    if p.twig_kill_distance_m < p.kill_distance_m {
+        let d = crate::metrics::point_distances(&prep.pts, &skeleton);
+        let attract: Vec<bool> = d
+            .iter()
+            .zip(&prep.main)
+            .map(|(&d, &m)| m && d > p.twig_kill_distance_m.max(TWIG_PASS_MIN_DISTANCE_M))
+            .collect();
+        if attract.iter().any(|&a| a) {
+            let seeds: Vec<[f64; 3]> = graph.pos.iter().map(|v| [v.x, v.y, v.z]).collect();
+            let g2 = grow(
+                &prep,
+                Pass {
+                    seeds: (&seeds, &graph.parent),
+                    attract,
+                    kill_m: p.twig_kill_distance_m,
+                    influence_m: INFLUENCE_PER_KILL * p.twig_kill_distance_m,
+                    bridges: false,
+                },
+            )?;
+            let from = graph.pos.len();
+            if g2.positions.len() > from {
+                graph.pos = g2.positions.iter().map(|x| Vector3::from(*x)).collect();
+                graph.parent = g2.parents.clone();
+                refine(&mut graph, from);
+                skeleton = radii(&graph)?;
+            }
+            twig_growth = Some(g2);
+        }
+    }
+    let mut pruned = 0;
+    for _ in 0..2 {
+        let (keep, twigs) = twig_stubs(&skeleton, p.min_twig_m);
+        if twigs == 0 {
+            break;
+        }
+        pruned += twigs;
+        graph.retain(&keep);
+        skeleton = radii(&graph)?;
+    }
+    let branches = skeleton.branches();
+    Ok(Reconstruction {
+        growth: GrowthReport {
+            iterations: g.iterations + twig_growth.as_ref().map_or(0, |t| t.iterations),
+            grown_nodes: twig_growth
+                .as_ref()
+                .map_or(g.positions.len(), |t| t.positions.len()),
+            bridges: g.bridges,
+            bridged_length_m: g.bridged_m,
+            outlier_points: prep.outliers,
+            unreached_points: g.unreached,
+            abandoned_points: g.abandoned,
+            pruned_twigs: pruned,
+        },
+        skeleton,
+        branches,
+        parameters: p,
+    })
+}

@@ -1,0 +1,480 @@
+//! From the grown graph to a skeleton: tip completion, centring on the branch axis,
+//! smoothing, pipe-model radii, and removal of growth artefacts.
+
+use kiddo::SquaredEuclidean;
+use kiddo::immutable::float::kdtree::ImmutableKdTree;
+use nalgebra::{Point3, Vector3};
+
+use crate::circle::fit_circle;
+use crate::config::Parameters;
+use crate::error::Result;
+use crate::skeleton::{Skeleton, SkeletonNode};
+
+/// A circle fit moves a node only when it uses at least this many points.
+const MIN_FIT_POINTS: usize = 6;
+/// ... covers at least this share of the circle's 16 sectors (a one-sided view covers half).
+const MIN_FIT_COVERAGE: f64 = 0.25;
+/// ... and its RMS residual is below this share of its radius.
+const MAX_FIT_RMS_PER_RADIUS: f64 = 0.35;
+/// A fitted radius is trusted as a measurement with at least this many points,
+const RELIABLE_FIT_POINTS: usize = 6;
+/// ... covering at least this share of the circle (a one-sided view gives up to a half),
+const RELIABLE_FIT_COVERAGE: f64 = 0.25;
+/// ... an RMS residual below this share of the radius,
+const RELIABLE_FIT_RMS_PER_RADIUS: f64 = 0.35;
+/// ... and a radius of at least this many point spacings (thinner ones are noise-bound).
+const RELIABLE_FIT_SPACINGS: f64 = 0.5;
+/// Fewest measured radii on a chain for a taper fit.
+const MIN_TAPER_FITS: usize = 3;
+/// Taubin smoothing: the shrinking step's weight λ and the inflating step's μ (Taubin 1995
+/// suggests μ slightly beyond −λ; these pass-band values keep bends of a few nodes).
+const TAUBIN_LAMBDA: f64 = 0.5;
+/// See [`TAUBIN_LAMBDA`].
+const TAUBIN_MU: f64 = -0.53;
+/// Centring passes (the assignment of points to nodes is redone between them).
+const CENTRING_PASSES: usize = 4;
+
+/// The working graph: parents always before children.
+#[derive(Debug, Clone)]
+pub(crate) struct Graph {
+    pub pos: Vec<Vector3<f64>>,
+    pub parent: Vec<Option<usize>>,
+}
+
+impl Graph {
+    pub(crate) fn children(&self) -> Vec<Vec<usize>> {
+        let mut c = vec![Vec::new(); self.pos.len()];
+        for (i, p) in self.parent.iter().enumerate() {
+            if let Some(p) = p {
+                c[*p].push(i);
+            }
+        }
+        c
+    }
+
+    /// Each point's nearest node, as lists per node (CSR: `start[i]..start[i + 1]` in `items`).
+    fn assign(&self, pts: &[[f64; 3]], keep: &[bool]) -> Assignment {
+        let nodes: Vec<[f64; 3]> = self.pos.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&nodes);
+        let owner: Vec<u32> = pts
+            .iter()
+            .zip(keep)
+            .map(|(q, &k)| {
+                if k {
+                    tree.nearest_one::<SquaredEuclidean>(q).item
+                } else {
+                    u32::MAX
+                }
+            })
+            .collect();
+        let mut start = vec![0usize; self.pos.len() + 1];
+        for &o in &owner {
+            if o != u32::MAX {
+                start[o as usize + 1] += 1;
+            }
+        }
+        for i in 0..self.pos.len() {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut items = vec![0u32; start[self.pos.len()]];
+        for (i, &o) in owner.iter().enumerate() {
+            if o != u32::MAX {
+                items[fill[o as usize]] = i as u32;
+                fill[o as usize] += 1;
+            }
+        }
+        Assignment { start, items }
+    }
+
+    /// Unit direction of the branch at a node: from its parent to its only child, else from
+    /// its parent to it, else (the root) to its first child.
+    fn tangent(&self, i: usize, children: &[Vec<usize>]) -> Option<Vector3<f64>> {
+        let d = match (self.parent[i], children[i].as_slice()) {
+            (Some(p), [c]) => self.pos[*c] - self.pos[p],
+            (Some(p), _) => self.pos[i] - self.pos[p],
+            (None, [c, ..]) => self.pos[*c] - self.pos[i],
+            (None, []) => return None,
+        };
+        d.try_normalize(1e-12)
+    }
+
+    /// Extend each tip from index `from` on along its direction to the farthest point it owns.
+    pub(crate) fn extend_tips(
+        &mut self,
+        pts: &[[f64; 3]],
+        keep: &[bool],
+        p: &Parameters,
+        from: usize,
+    ) {
+        let a = self.assign(pts, keep);
+        let children = self.children();
+        let tips: Vec<usize> = (from..self.pos.len())
+            .filter(|&i| children[i].is_empty() && self.parent[i].is_some())
+            .collect();
+        for t in tips {
+            let Some(dir) = self.tangent(t, &children) else {
+                continue;
+            };
+            let base = self.pos[t];
+            let mut reach = 0.0_f64;
+            for &q in a.of(t) {
+                let v = Vector3::from(pts[q as usize]) - base;
+                let s = v.dot(&dir);
+                if s > 0.0 && (v - s * dir).norm() < p.kill_distance_m {
+                    reach = reach.max(s);
+                }
+            }
+            if reach < 0.5 * p.step_m {
+                continue;
+            }
+            let steps = (reach / p.step_m).ceil().max(1.0);
+            let mut parent = t;
+            for k in 1..=(steps as usize) {
+                self.pos.push(base + dir * (reach * k as f64 / steps));
+                self.parent.push(Some(parent));
+                parent = self.pos.len() - 1;
+            }
+        }
+    }
+
+    /// The points a node and its chain neighbours own, in the plane across the branch at
+    /// the node (coordinates along `u` and `v`, origin at the node).
+    fn cross_section(
+        &self,
+        i: usize,
+        a: &Assignment,
+        children: &[Vec<usize>],
+        pts: &[[f64; 3]],
+        plane: &mut Vec<[f64; 2]>,
+    ) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let t = self.tangent(i, children)?;
+        let u = t
+            .cross(&Vector3::z())
+            .try_normalize(1e-9)
+            .unwrap_or_else(|| t.cross(&Vector3::x()).normalize());
+        let v = t.cross(&u);
+        plane.clear();
+        let o = self.pos[i];
+        let mut add = |n: usize| {
+            for &q in a.of(n) {
+                let d = Vector3::from(pts[q as usize]) - o;
+                plane.push([d.dot(&u), d.dot(&v)]);
+            }
+        };
+        add(i);
+        if let Some(par) = self.parent[i] {
+            add(par);
+        }
+        for &c in &children[i] {
+            add(c);
+        }
+        Some((u, v))
+    }
+
+    /// Move nodes from index `from` on onto the branch axis: a circle fitted to the points a node and its
+    /// neighbours own, in the plane across the branch; where no circle fits (thin branches),
+    /// the centroid of those points.
+    #[allow(clippy::needless_range_loop)] // `i` is also the node passed to the helpers
+    pub(crate) fn centre(&mut self, pts: &[[f64; 3]], keep: &[bool], p: &Parameters, from: usize) {
+        for _ in 0..CENTRING_PASSES {
+            let a = self.assign(pts, keep);
+            let children = self.children();
+            let mut moved = self.pos.clone();
+            let mut plane: Vec<[f64; 2]> = Vec::new();
+            for i in from..self.pos.len() {
+                if near_fork(i, &self.parent, &children) {
+                    continue; // forks mix the points of two branches
+                }
+                let Some((u, v)) = self.cross_section(i, &a, &children, pts, &mut plane) else {
+                    continue;
+                };
+                if plane.is_empty() {
+                    continue;
+                }
+                let centre = match fit_circle(&plane).filter(|c| usable(c, p)) {
+                    Some(c) => c.centre,
+                    // Too few points or too thin for a circle: the centroid of the cross
+                    // section, which is on the axis of a branch about a spacing thick.
+                    None => {
+                        let k = plane.len() as f64;
+                        [
+                            plane.iter().map(|q| q[0]).sum::<f64>() / k,
+                            plane.iter().map(|q| q[1]).sum::<f64>() / k,
+                        ]
+                    }
+                };
+                moved[i] += u * centre[0] + v * centre[1];
+            }
+            self.pos = moved;
+        }
+    }
+
+    /// Radius measured at each node where a circle fits its cross-section well (see
+    /// [`RELIABLE_FIT_POINTS`]), median-filtered along the branch; `None` elsewhere.
+    pub(crate) fn fit_radii(
+        &self,
+        pts: &[[f64; 3]],
+        keep: &[bool],
+        p: &Parameters,
+    ) -> Vec<Option<f64>> {
+        let a = self.assign(pts, keep);
+        let children = self.children();
+        let mut plane: Vec<[f64; 2]> = Vec::new();
+        let raw: Vec<Option<f64>> = (0..self.pos.len())
+            .map(|i| {
+                if children[i].len() > 1 {
+                    return None;
+                }
+                self.cross_section(i, &a, &children, pts, &mut plane)?;
+                let c = fit_circle(&plane).filter(|c| usable(c, p))?;
+                (c.points >= RELIABLE_FIT_POINTS
+                    && c.coverage >= RELIABLE_FIT_COVERAGE
+                    && c.rms_m < RELIABLE_FIT_RMS_PER_RADIUS * c.radius_m
+                    && c.radius_m >= RELIABLE_FIT_SPACINGS * p.spacing_m
+                    && c.centre[0].hypot(c.centre[1]) < 0.5 * c.radius_m)
+                    .then_some(c.radius_m)
+            })
+            .collect();
+        self.taper_fit(&raw, &children)
+    }
+
+    /// Radii per chain (the nodes between two forks): a straight taper r(s) = a + b·s fitted
+    /// to the chain's measured radii by least squares, once more without those beyond 2.5
+    /// median absolute deviations, with b ≤ 0 (a branch does not thicken toward its tip; a
+    /// rising fit becomes the median). Chains with fewer than [`MIN_TAPER_FITS`] measurements
+    /// stay unmeasured.
+    fn taper_fit(&self, raw: &[Option<f64>], children: &[Vec<usize>]) -> Vec<Option<f64>> {
+        let n = self.pos.len();
+        let mut out = vec![None; n];
+        for first in 0..n {
+            let starts = self.parent[first].is_none_or(|p| children[p].len() != 1);
+            if !starts {
+                continue;
+            }
+            let mut chain = vec![first];
+            let mut v = first;
+            while let [c] = children[v].as_slice() {
+                chain.push(*c);
+                v = *c;
+            }
+            let mut s = 0.0;
+            let mut samples: Vec<(f64, f64)> = Vec::new();
+            for (k, &v) in chain.iter().enumerate() {
+                if k > 0 {
+                    s += (self.pos[v] - self.pos[chain[k - 1]]).norm();
+                }
+                if let Some(r) = raw[v] {
+                    samples.push((s, r));
+                }
+            }
+            if samples.len() < MIN_TAPER_FITS {
+                continue;
+            }
+            let Some((a, b)) = robust_taper(&samples) else {
+                continue;
+            };
+            let mut s = 0.0;
+            for (k, &v) in chain.iter().enumerate() {
+                if k > 0 {
+                    s += (self.pos[v] - self.pos[chain[k - 1]]).norm();
+                }
+                let r = a + b * s;
+                if r > 0.0 {
+                    out[v] = Some(r);
+                }
+            }
+        }
+        out
+    }
+
+    /// Smoothing of chain nodes (one parent, one child) from index `from` on. Plain
+    /// Laplacian steps of weight λ with `taubin` false; with `taubin` true each is followed
+    /// by one of weight μ < −λ, which removes zig-zag without the shrinking of plain
+    /// Laplacian smoothing (Taubin 1995). Forks, tips and the root stay.
+    pub(crate) fn smooth_from(&mut self, passes: usize, from: usize, taubin: bool) {
+        let children = self.children();
+        let weights: &[f64] = if taubin {
+            &[TAUBIN_LAMBDA, TAUBIN_MU]
+        } else {
+            &[TAUBIN_LAMBDA]
+        };
+        for _ in 0..passes {
+            for &w in weights {
+                let mut next = self.pos.clone();
+                for i in from..self.pos.len() {
+                    if let (Some(par), [c]) = (self.parent[i], children[i].as_slice()) {
+                        let mid = (self.pos[par] + self.pos[*c]) * 0.5;
+                        next[i] = self.pos[i] + (mid - self.pos[i]) * w;
+                    }
+                }
+                self.pos = next;
+            }
+        }
+    }
+
+    /// Drop nodes whose `keep` is false (their subtrees must be dropped too), renumbering
+    /// with the order kept.
+    pub(crate) fn retain(&mut self, keep: &[bool]) {
+        let mut map = vec![usize::MAX; self.pos.len()];
+        let mut pos = Vec::new();
+        let mut parent = Vec::new();
+        for i in 0..self.pos.len() {
+            let ok = keep[i] && self.parent[i].is_none_or(|p| map[p] != usize::MAX);
+            if ok {
+                map[i] = pos.len();
+                pos.push(self.pos[i]);
+                parent.push(self.parent[i].map(|p| map[p]));
+            }
+        }
+        self.pos = pos;
+        self.parent = parent;
+    }
+
+    /// The skeleton with pipe-model radii: each segment's radius^e is proportional to the
+    /// length of tree it carries, so r_parent^e = Σ r_child^e at every fork, scaled so that
+    /// the trunk segment at the base has `base_radius_m`. With `fits`, every node with a
+    /// measured radius is an anchor too: it takes the measurement, and the nodes beyond it
+    /// follow the pipe model scaled from the nearest anchor toward the root.
+    pub(crate) fn to_skeleton(
+        &self,
+        exponent: f64,
+        base_radius_m: f64,
+        fits: Option<&[Option<f64>]>,
+    ) -> Result<Skeleton> {
+        let flat = Skeleton::new(
+            self.pos
+                .iter()
+                .enumerate()
+                .map(|(id, p)| SkeletonNode {
+                    id,
+                    parent: self.parent[id],
+                    position: Point3::from(*p),
+                    radius_m: 0.0,
+                })
+                .collect(),
+        )?;
+        let w = flat.carried_length_m();
+        let root = flat.root();
+        let scale = if w[root] > 0.0 {
+            base_radius_m.powf(exponent) / w[root]
+        } else {
+            0.0
+        };
+        let pipe: Vec<f64> = w
+            .iter()
+            .map(|&w| (scale * w).powf(1.0 / exponent))
+            .collect();
+        let mut radius = pipe.clone();
+        if let Some(fits) = fits {
+            let mut ratio = vec![1.0; pipe.len()];
+            for &i in flat.topological_order() {
+                let inherited = self.parent[i].map_or(1.0, |p| ratio[p]);
+                ratio[i] = match fits.get(i).copied().flatten() {
+                    Some(r) if pipe[i] > 0.0 => r / pipe[i],
+                    _ => inherited,
+                };
+                radius[i] = pipe[i] * ratio[i];
+            }
+        }
+        Skeleton::new(
+            flat.nodes()
+                .iter()
+                .map(|x| SkeletonNode {
+                    radius_m: radius[x.id],
+                    ..*x
+                })
+                .collect(),
+        )
+    }
+}
+
+/// Line r = a + b·s through (s, r) samples, refitted without outliers, b ≤ 0.
+fn robust_taper(samples: &[(f64, f64)]) -> Option<(f64, f64)> {
+    let line = |pts: &[&(f64, f64)]| -> Option<(f64, f64)> {
+        let n = pts.len() as f64;
+        let ms = pts.iter().map(|p| p.0).sum::<f64>() / n;
+        let mr = pts.iter().map(|p| p.1).sum::<f64>() / n;
+        let sxx: f64 = pts.iter().map(|p| (p.0 - ms).powi(2)).sum();
+        let sxy: f64 = pts.iter().map(|p| (p.0 - ms) * (p.1 - mr)).sum();
+        let b = if sxx > 0.0 { (sxy / sxx).min(0.0) } else { 0.0 };
+        if b == 0.0 {
+            let mut r: Vec<f64> = pts.iter().map(|p| p.1).collect();
+            r.sort_by(f64::total_cmp);
+            return Some((r[r.len() / 2], 0.0));
+        }
+        Some((mr - b * ms, b))
+    };
+    let all: Vec<&(f64, f64)> = samples.iter().collect();
+    let (a, b) = line(&all)?;
+    let mut dev: Vec<f64> = samples.iter().map(|p| (p.1 - a - b * p.0).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    let limit = 2.5 * 1.4826 * dev[dev.len() / 2];
+    let kept: Vec<&(f64, f64)> = samples
+        .iter()
+        .filter(|p| (p.1 - a - b * p.0).abs() <= limit)
+        .collect();
+    if kept.len() >= MIN_TAPER_FITS && kept.len() < samples.len() {
+        line(&kept)
+    } else {
+        Some((a, b))
+    }
+}
+
+/// True for a fork and for the nodes next to one: their cross-sections mix branches.
+fn near_fork(i: usize, parent: &[Option<usize>], children: &[Vec<usize>]) -> bool {
+    children[i].len() > 1
+        || parent[i].is_some_and(|p| children[p].len() > 1)
+        || children[i].iter().any(|&c| children[c].len() > 1)
+}
+
+/// A circle that may move a node.
+fn usable(c: &crate::circle::Circle, p: &Parameters) -> bool {
+    c.points >= MIN_FIT_POINTS
+        && c.coverage >= MIN_FIT_COVERAGE
+        && c.rms_m < MAX_FIT_RMS_PER_RADIUS * c.radius_m
+        && c.radius_m < p.influence_m
+        && c.radius_m > 0.3 * p.spacing_m
+        && c.centre[0].hypot(c.centre[1]) <= c.radius_m.max(p.step_m)
+}
+
+/// Points per node.
+struct Assignment {
+    start: Vec<usize>,
+    items: Vec<u32>,
+}
+
+impl Assignment {
+    fn of(&self, node: usize) -> &[u32] {
+        &self.items[self.start[node]..self.start[node + 1]]
+    }
+}
+
+/// Remove terminal branches that reach less than `min_twig_m` beyond the surface of the
+/// branch they grow from: stubs that space colonization grows toward the near side of a
+/// thick branch. Returns the nodes to keep.
+pub(crate) fn twig_stubs(skeleton: &Skeleton, min_twig_m: f64) -> (Vec<bool>, usize) {
+    let mut keep = vec![true; skeleton.nodes().len()];
+    let mut twigs = 0;
+    let nodes = skeleton.nodes();
+    for b in skeleton.branches() {
+        let (Some(base), Some(&tip)) = (b.base_node, b.nodes.last()) else {
+            continue;
+        };
+        if !skeleton.children(tip).is_empty() {
+            continue;
+        }
+        // Terminal: no branch grows from it.
+        if b.nodes.iter().any(|&v| skeleton.children(v).len() > 1) {
+            continue;
+        }
+        let reach = (nodes[tip].position - nodes[base].position).norm();
+        if reach < nodes[base].radius_m + min_twig_m {
+            twigs += 1;
+            for &v in &b.nodes {
+                keep[v] = false;
+            }
+        }
+    }
+    (keep, twigs)
+}

@@ -1,0 +1,326 @@
+//! The tree skeleton: nodes with parent links and radii, branches, orders, JSON files.
+
+use std::path::Path;
+
+use nalgebra::Point3;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{ColonizeError, Result};
+
+/// One skeleton node. The segment from its parent to it is a cylinder of radius `radius_m`
+/// (the root's radius is the trunk's at its base).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SkeletonNode {
+    /// Index in [`Skeleton::nodes`].
+    pub id: usize,
+    /// Parent node, `None` for the root.
+    pub parent: Option<usize>,
+    /// Position, metres, tree frame (Z up).
+    pub position: Point3<f64>,
+    /// Radius of the segment ending here, metres.
+    pub radius_m: f64,
+}
+
+/// A branch: a chain of nodes that continues through each fork along the child carrying the
+/// most tree beyond it (TreeQSM's convention); the other children start branches one order
+/// higher. Named by its first node: the root for the trunk, otherwise the first node after
+/// the fork it grows from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Branch {
+    /// Id of its first node.
+    pub id: usize,
+    /// Branch it grows from (`None` for the trunk).
+    pub parent: Option<usize>,
+    /// The fork node on the parent branch it starts at (`None` for the trunk).
+    pub base_node: Option<usize>,
+    /// Its nodes, base to tip (the fork node not included).
+    pub nodes: Vec<usize>,
+    /// 0 for the trunk, 1 for branches on the trunk, and so on (the paper's levels).
+    pub order: usize,
+    /// Length from the fork (or root) to the tip, metres.
+    pub length_m: f64,
+}
+
+/// A validated tree of nodes: one root, every other node's parent exists, no cycles.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Skeleton {
+    nodes: Vec<SkeletonNode>,
+    children: Vec<Vec<usize>>,
+    /// Nodes with every parent before its children.
+    order: Vec<usize>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonNode {
+    id: usize,
+    parent: Option<usize>,
+    position: [f64; 3],
+    radius: f64,
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonSkeleton {
+    nodes: Vec<JsonNode>,
+}
+
+impl Skeleton {
+    /// Validate nodes into a skeleton. Ids must be 0..n in any order (they are sorted).
+    ///
+    /// # Errors
+    /// [`ColonizeError::InvalidSkeleton`] naming the node: duplicate or out-of-range id, no
+    /// root or two, a parent that does not exist, a cycle or a node not connected to the
+    /// root, a position that is not finite, a radius that is negative or not finite.
+    pub fn new(mut nodes: Vec<SkeletonNode>) -> Result<Self> {
+        let n = nodes.len();
+        if n == 0 {
+            return Err(ColonizeError::skeleton("no nodes"));
+        }
+        nodes.sort_by_key(|node| node.id);
+        for (i, node) in nodes.iter().enumerate() {
+            if node.id != i {
+                return Err(ColonizeError::skeleton(format!(
+                    "node ids must be 0..{n} once each; id {} is {}",
+                    node.id,
+                    if node.id < i {
+                        "repeated"
+                    } else {
+                        "out of range or leaves a gap"
+                    }
+                )));
+            }
+            if !node.position.iter().all(|c| c.is_finite()) {
+                return Err(ColonizeError::skeleton(format!(
+                    "node {i} has position {:?}, which is not finite",
+                    node.position.coords.as_slice()
+                )));
+            }
+            if !(node.radius_m.is_finite() && node.radius_m >= 0.0) {
+                return Err(ColonizeError::skeleton(format!(
+                    "node {i} has radius {} m; must be finite and not negative",
+                    node.radius_m
+                )));
+            }
+            if let Some(p) = node.parent
+                && (p >= n || p == i)
+            {
+                return Err(ColonizeError::skeleton(format!(
+                    "node {i} has parent {p}, which {}",
+                    if p == i {
+                        "is itself"
+                    } else {
+                        "does not exist"
+                    }
+                )));
+            }
+        }
+        let roots: Vec<usize> = nodes
+            .iter()
+            .filter(|x| x.parent.is_none())
+            .map(|x| x.id)
+            .collect();
+        if roots.len() != 1 {
+            return Err(ColonizeError::skeleton(format!(
+                "{} roots ({:?}); a tree has exactly one node without a parent",
+                roots.len(),
+                &roots[..roots.len().min(5)]
+            )));
+        }
+        let mut children = vec![Vec::new(); n];
+        for node in &nodes {
+            if let Some(p) = node.parent {
+                children[p].push(node.id);
+            }
+        }
+        let mut order = Vec::with_capacity(n);
+        order.push(roots[0]);
+        let mut k = 0;
+        while k < order.len() {
+            let v = order[k];
+            order.extend_from_slice(&children[v]);
+            k += 1;
+        }
+        if order.len() != n {
+            let mut seen = vec![false; n];
+            for &v in &order {
+                seen[v] = true;
+            }
+            let lost = seen.iter().position(|s| !s).unwrap_or(0);
+            return Err(ColonizeError::skeleton(format!(
+                "node {lost} is not connected to the root {} (its parents form a cycle)",
+                roots[0]
+            )));
+        }
+        Ok(Self {
+            nodes,
+            children,
+            order,
+        })
+    }
+
+    /// The nodes, indexed by id.
+    pub fn nodes(&self) -> &[SkeletonNode] {
+        &self.nodes
+    }
+
+    /// Children of a node.
+    pub fn children(&self, id: usize) -> &[usize] {
+        self.children.get(id).map_or(&[], Vec::as_slice)
+    }
+
+    /// The root node's id.
+    pub fn root(&self) -> usize {
+        self.order[0]
+    }
+
+    /// Node ids with every parent before its children (breadth first from the root).
+    pub fn topological_order(&self) -> &[usize] {
+        &self.order
+    }
+
+    /// Length of the segment from a node's parent to it, metres (0 for the root).
+    pub fn segment_length_m(&self, id: usize) -> f64 {
+        let node = &self.nodes[id];
+        node.parent
+            .map_or(0.0, |p| (node.position - self.nodes[p].position).norm())
+    }
+
+    /// Sum of all segment lengths, metres.
+    pub fn total_length_m(&self) -> f64 {
+        (0..self.nodes.len())
+            .map(|i| self.segment_length_m(i))
+            .sum()
+    }
+
+    /// Volume of the segments as cylinders, cubic metres.
+    pub fn volume_m3(&self) -> f64 {
+        self.nodes
+            .iter()
+            .map(|x| std::f64::consts::PI * x.radius_m.powi(2) * self.segment_length_m(x.id))
+            .sum()
+    }
+
+    /// Length of tree carried by each segment: its own length plus everything beyond it,
+    /// metres (the pipe model's weight).
+    pub fn carried_length_m(&self) -> Vec<f64> {
+        let mut w: Vec<f64> = (0..self.nodes.len())
+            .map(|i| self.segment_length_m(i))
+            .collect();
+        for &v in self.order.iter().rev() {
+            if let Some(p) = self.nodes[v].parent
+                && self.nodes[p].parent.is_some()
+            {
+                w[p] += w[v];
+            }
+        }
+        // The root carries its children.
+        let root = self.root();
+        w[root] = self.children[root].iter().map(|&c| w[c]).sum();
+        w
+    }
+
+    /// The branches, trunk first, then in the order their first nodes are met breadth
+    /// first. At a fork the branch continues into the child carrying the most length.
+    pub fn branches(&self) -> Vec<Branch> {
+        let carried = self.carried_length_m();
+        let mut out: Vec<Branch> = Vec::new();
+        // (first node, parent branch index, fork node, order)
+        let mut queue: std::collections::VecDeque<(usize, Option<usize>, Option<usize>, usize)> =
+            std::collections::VecDeque::new();
+        queue.push_back((self.root(), None, None, 0));
+        while let Some((first, parent_idx, base, order)) = queue.pop_front() {
+            let idx = out.len();
+            let mut nodes = vec![first];
+            let mut length_m = self.segment_length_m(first);
+            let mut v = first;
+            loop {
+                let kids = &self.children[v];
+                let Some(&main) = kids
+                    .iter()
+                    .max_by(|&&a, &&b| carried[a].total_cmp(&carried[b]).then(b.cmp(&a)))
+                else {
+                    break;
+                };
+                for &k in kids {
+                    if k != main {
+                        queue.push_back((k, Some(idx), Some(v), order + 1));
+                    }
+                }
+                nodes.push(main);
+                length_m += self.segment_length_m(main);
+                v = main;
+            }
+            out.push(Branch {
+                id: first,
+                parent: parent_idx.map(|p: usize| out[p].id),
+                base_node: base,
+                nodes,
+                order,
+                length_m,
+            });
+        }
+        out
+    }
+
+    /// The skeleton as JSON: `{"nodes": [{"id", "parent", "position": [x, y, z],
+    /// "radius"}]}`, metres.
+    ///
+    /// # Errors
+    /// Never in practice (serialisation of finite numbers); kept for the signature.
+    pub fn to_json(&self) -> Result<String> {
+        let doc = JsonSkeleton {
+            nodes: self
+                .nodes
+                .iter()
+                .map(|x| JsonNode {
+                    id: x.id,
+                    parent: x.parent,
+                    position: [x.position.x, x.position.y, x.position.z],
+                    radius: x.radius_m,
+                })
+                .collect(),
+        };
+        serde_json::to_string_pretty(&doc).map_err(|e| ColonizeError::Format {
+            path: "skeleton JSON".into(),
+            reason: e.to_string(),
+        })
+    }
+
+    /// Parse the JSON of [`Skeleton::to_json`]; `path` only names it in errors.
+    ///
+    /// # Errors
+    /// [`ColonizeError::Format`] for JSON that does not match, then as [`Skeleton::new`].
+    pub fn from_json(text: &str, path: &Path) -> Result<Self> {
+        let doc: JsonSkeleton = serde_json::from_str(text).map_err(|e| ColonizeError::Format {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
+        Self::new(
+            doc.nodes
+                .into_iter()
+                .map(|x| SkeletonNode {
+                    id: x.id,
+                    parent: x.parent,
+                    position: Point3::from(x.position),
+                    radius_m: x.radius,
+                })
+                .collect(),
+        )
+    }
+
+    /// Read a skeleton JSON file.
+    ///
+    /// # Errors
+    /// [`ColonizeError::Io`], then as [`Skeleton::from_json`].
+    pub fn read_json(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| ColonizeError::io(path, e))?;
+        Self::from_json(&text, path)
+    }
+
+    /// Write [`Skeleton::to_json`] to a file.
+    ///
+    /// # Errors
+    /// [`ColonizeError::Io`].
+    pub fn write_json(&self, path: &Path) -> Result<()> {
+        std::fs::write(path, self.to_json()?).map_err(|e| ColonizeError::io(path, e))
+    }
+}

@@ -1,0 +1,140 @@
+//! Bad clouds and parameters give typed errors, never a panic.
+
+use nalgebra::Point3;
+use proptest::prelude::*;
+use space_colonize::{ColonizeConfig, ColonizeError, reconstruct};
+
+fn cfg() -> ColonizeConfig {
+    ColonizeConfig::default()
+}
+
+#[test]
+fn empty_and_single_point() {
+    assert!(matches!(
+        reconstruct(&[], &cfg()),
+        Err(ColonizeError::TooFewPoints { points: 0, .. })
+    ));
+    assert!(matches!(
+        reconstruct(&[Point3::new(1.0, 2.0, 3.0)], &cfg()),
+        Err(ColonizeError::TooFewPoints { points: 1, .. })
+    ));
+}
+
+#[test]
+fn identical_collinear_and_coplanar_points() {
+    let same = vec![Point3::new(1.0, 1.0, 1.0); 50];
+    assert!(matches!(
+        reconstruct(&same, &cfg()),
+        Err(ColonizeError::Degenerate { .. })
+    ));
+    let line: Vec<_> = (0..50)
+        .map(|i| Point3::new(0.0, 0.0, f64::from(i) * 0.01))
+        .collect();
+    assert!(matches!(
+        reconstruct(&line, &cfg()),
+        Err(ColonizeError::Degenerate { .. })
+    ));
+    let plane: Vec<_> = (0..400)
+        .map(|i| Point3::new(f64::from(i % 20) * 0.01, 0.5, f64::from(i / 20) * 0.01))
+        .collect();
+    assert!(matches!(
+        reconstruct(&plane, &cfg()),
+        Err(ColonizeError::Degenerate { .. })
+    ));
+}
+
+#[test]
+fn nan_coordinates_are_named() {
+    let mut pts: Vec<_> = (0..50)
+        .map(|i| {
+            Point3::new(
+                f64::from(i % 3) * 0.01,
+                f64::from(i % 7) * 0.01,
+                f64::from(i) * 0.01,
+            )
+        })
+        .collect();
+    pts[17].y = f64::NAN;
+    assert!(matches!(
+        reconstruct(&pts, &cfg()),
+        Err(ColonizeError::NonFinitePoint { index: 17, .. })
+    ));
+}
+
+#[test]
+fn parameters_that_cannot_work() {
+    let pts: Vec<_> = (0..200)
+        .map(|i| {
+            let a = f64::from(i) * 0.7;
+            Point3::new(0.05 * a.cos(), 0.05 * a.sin(), f64::from(i) * 0.005)
+        })
+        .collect();
+    let err = reconstruct(
+        &pts,
+        &ColonizeConfig {
+            kill_distance_m: Some(0.5),
+            influence_m: Some(0.2),
+            ..cfg()
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ColonizeError::InvalidParameter {
+                name: "kill_distance_m",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    let err = reconstruct(
+        &pts,
+        &ColonizeConfig {
+            step_m: Some(-1.0),
+            ..cfg()
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, ColonizeError::InvalidParameter { name: "step_m", .. }),
+        "{err}"
+    );
+    let err = reconstruct(
+        &pts,
+        &ColonizeConfig {
+            pipe_exponent: f64::NAN,
+            ..cfg()
+        },
+    )
+    .unwrap_err();
+    assert!(matches!(
+        err,
+        ColonizeError::InvalidParameter {
+            name: "pipe_exponent",
+            ..
+        }
+    ));
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Any small cloud, including duplicates and extreme spreads, gives a model or an error.
+    #[test]
+    fn arbitrary_clouds_never_panic(
+        pts in prop::collection::vec((-2.0f64..2.0, -2.0f64..2.0, 0.0f64..4.0), 0..120),
+        dup in 0usize..40,
+        scale in prop::sample::select(vec![1e-4, 1.0, 100.0]),
+    ) {
+        let mut cloud: Vec<Point3<f64>> =
+            pts.iter().map(|&(x, y, z)| Point3::new(x * scale, y * scale, z * scale)).collect();
+        if let Some(&p) = cloud.first() {
+            cloud.extend(std::iter::repeat_n(p, dup));
+        }
+        if let Ok(model) = reconstruct(&cloud, &ColonizeConfig::default()) {
+            prop_assert!(model.skeleton.nodes().iter().all(|n| n.radius_m.is_finite()
+                && n.position.iter().all(|c| c.is_finite())));
+        }
+    }
+}

@@ -1,0 +1,166 @@
+//! Reconstruction of synthetic trees against their known skeletons.
+
+use nalgebra::{Point3, Vector3};
+use space_colonize::synthetic::{SyntheticConfig, skeleton_error};
+use space_colonize::{ColonizeConfig, ColonizeError, metrics, reconstruct};
+
+fn small(seed: u64) -> SyntheticConfig {
+    SyntheticConfig {
+        seed,
+        points: 10_000,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn recovers_a_synthetic_tree() {
+    let truth = small(3).generate().unwrap();
+    let model = reconstruct(&truth.points, &ColonizeConfig::default()).unwrap();
+    let m = metrics(&truth.points, &model.skeleton);
+    let e = skeleton_error(&model.skeleton, &truth.skeleton);
+    // Surface within a few noise levels (1 mm) of the points, axes within a centimetre.
+    assert!(m.mean_distance_m < 0.004, "{m:?}");
+    assert!(m.within_2cm > 0.99, "{m:?}");
+    assert!(e.mean_skeleton_error_m < 0.012, "{e:?}");
+    assert!(e.truth_length_found > 0.97, "{e:?}");
+    assert!((e.length_ratio - 1.0).abs() < 0.3, "{e:?}");
+    assert!((e.volume_ratio - 1.0).abs() < 0.3, "{e:?}");
+    assert!((e.base_radius_ratio - 1.0).abs() < 0.1, "{e:?}");
+    // The trunk is order 0 and there are branches of higher orders.
+    let by_order = model.branches_by_order();
+    assert_eq!(by_order[0], 1);
+    assert!(by_order.len() >= 3, "{by_order:?}");
+}
+
+#[test]
+fn one_sided_view_is_centred() {
+    let cfg = SyntheticConfig {
+        view_direction: Some(Vector3::new(0.0, 1.0, 0.0)),
+        ..small(5)
+    };
+    let truth = cfg.generate().unwrap();
+    let centred = reconstruct(&truth.points, &ColonizeConfig::default()).unwrap();
+    let raw = reconstruct(
+        &truth.points,
+        &ColonizeConfig {
+            centring: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let ec = skeleton_error(&centred.skeleton, &truth.skeleton);
+    let er = skeleton_error(&raw.skeleton, &truth.skeleton);
+    // Centring moves the axes off the visible surface toward the true axis.
+    assert!(
+        ec.mean_skeleton_error_m < er.mean_skeleton_error_m,
+        "centred {ec:?} raw {er:?}"
+    );
+    assert!(ec.mean_skeleton_error_m < 0.02, "{ec:?}");
+}
+
+#[test]
+fn bridges_an_occluded_trunk_and_stays_one_tree() {
+    let cfg = SyntheticConfig {
+        gap_z_m: Some((0.6, 1.0)),
+        ..small(11)
+    };
+    let truth = cfg.generate().unwrap();
+    let model = reconstruct(&truth.points, &ColonizeConfig::default()).unwrap();
+    assert!(model.growth.bridges >= 1, "{:?}", model.growth);
+    assert_eq!(model.growth.unreached_points, 0);
+    // One tree (a Skeleton has one root by construction) that covers the points.
+    let m = metrics(&truth.points, &model.skeleton);
+    assert!(m.within_5cm > 0.99, "{m:?}");
+    // The bridge runs near where the trunk was (from a node to the nearest surface point
+    // across the gap, so up to a trunk radius off the axis there).
+    let e = skeleton_error(&model.skeleton, &truth.skeleton);
+    assert!(e.truth_length_found > 0.9, "{e:?}");
+    assert!(e.mean_skeleton_error_m < 0.01, "{e:?}");
+}
+
+#[test]
+fn far_outliers_are_set_aside_and_reported() {
+    let mut truth = small(2).generate().unwrap();
+    let n = truth.points.len();
+    for k in 0..5 {
+        truth
+            .points
+            .push(Point3::new(100.0 + f64::from(k), -50.0, 20.0));
+    }
+    let model = reconstruct(&truth.points, &ColonizeConfig::default()).unwrap();
+    assert_eq!(model.growth.outlier_points, 5);
+    // The root is still at the base of the tree, not at the outliers.
+    let root = model.skeleton.nodes()[model.skeleton.root()].position;
+    assert!(root.coords.norm() < 0.1, "{root:?}");
+    let m = metrics(&truth.points[..n], &model.skeleton);
+    assert!(m.within_2cm > 0.99, "{m:?}");
+}
+
+#[test]
+fn iteration_bound_is_reported() {
+    let truth = small(1).generate().unwrap();
+    let err = reconstruct(
+        &truth.points,
+        &ColonizeConfig {
+            max_iterations: Some(20),
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, ColonizeError::IterationLimit { iterations: 20, .. }),
+        "{err}"
+    );
+    let err = reconstruct(
+        &truth.points,
+        &ColonizeConfig {
+            max_nodes: Some(50),
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, ColonizeError::NodeLimit { nodes: 50, .. }),
+        "{err}"
+    );
+}
+
+#[test]
+fn pure_pipe_model_follows_the_pipe_rule() {
+    let truth = small(4).generate().unwrap();
+    let cfg = ColonizeConfig {
+        radius_fits: false,
+        ..Default::default()
+    };
+    let model = reconstruct(&truth.points, &cfg).unwrap();
+    let s = &model.skeleton;
+    let e = cfg.pipe_exponent;
+    // r_in^e = Σ r_out^e at every fork (radii of the segments into and out of it).
+    let mut forks = 0;
+    for node in s.nodes() {
+        let kids = s.children(node.id);
+        if kids.len() < 2 || node.parent.is_none() {
+            continue;
+        }
+        forks += 1;
+        let out: f64 = kids
+            .iter()
+            .map(|&c| {
+                // The segment out of the fork carries its child's subtree and its own length.
+                s.nodes()[c].radius_m.powf(e)
+            })
+            .sum();
+        let inn = node.radius_m.powf(e);
+        // The incoming segment also carries its own length: inn >= out, close for short segments.
+        assert!(inn >= out * (1.0 - 1e-9), "fork {}: {inn} < {out}", node.id);
+        assert!(inn <= out * 1.2, "fork {}: {inn} vs {out}", node.id);
+    }
+    assert!(forks > 5);
+    // Anchored at the fitted trunk base.
+    let base = s
+        .children(s.root())
+        .iter()
+        .map(|&c| s.nodes()[c].radius_m)
+        .fold(0.0, f64::max);
+    approx::assert_relative_eq!(base, model.parameters.trunk_radius_m, max_relative = 1e-9);
+}
