@@ -69,6 +69,69 @@ pub(crate) fn fit_circle(pts: &[[f64; 2]]) -> Option<Circle> {
     })
 }
 
+/// Gauss–Newton iterations of [`centre_with_radius`].
+const CENTRE_ITERATIONS: usize = 8;
+
+/// Centre of a circle of known radius through 2D points: minimises Σ (|p − c| − r)² from
+/// `c = 0`, without the points beyond three median absolute deviations of the start. With
+/// the radius known, an arc of a one-sided view fixes the centre well where a free fit
+/// (which must also find the curvature) does not. The centre moves at most `r` from the
+/// origin. `None` with fewer than 3 points or a singular system.
+pub(crate) fn centre_with_radius(pts: &[[f64; 2]], r: f64) -> Option<[f64; 2]> {
+    if pts.len() < 3 || !(r.is_finite() && r > 0.0) {
+        return None;
+    }
+    let mut dev: Vec<f64> = pts
+        .iter()
+        .map(|p| (dist(p, [0.0, 0.0]) - r).abs())
+        .collect();
+    dev.sort_by(f64::total_cmp);
+    let limit = (3.0 * 1.4826 * dev[dev.len() / 2]).max(0.5 * r);
+    let used: Vec<&[f64; 2]> = pts
+        .iter()
+        .filter(|p| (dist(p, [0.0, 0.0]) - r).abs() <= limit)
+        .collect();
+    if used.len() < 3 {
+        return None;
+    }
+    let mut c = [0.0, 0.0];
+    for _ in 0..CENTRE_ITERATIONS {
+        let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for p in &used {
+            let d = dist(p, c);
+            if d < 1e-12 {
+                continue;
+            }
+            // Residual e = d − r; de/dc = −(p − c)/d.
+            let (jx, jy) = (-(p[0] - c[0]) / d, -(p[1] - c[1]) / d);
+            let e = d - r;
+            a11 += jx * jx;
+            a12 += jx * jy;
+            a22 += jy * jy;
+            b1 -= jx * e;
+            b2 -= jy * e;
+        }
+        let det = a11 * a22 - a12 * a12;
+        if det.abs() < 1e-12 * (a11 + a22).powi(2) || det == 0.0 {
+            return None;
+        }
+        let dx = (a22 * b1 - a12 * b2) / det;
+        let dy = (a11 * b2 - a12 * b1) / det;
+        c = [c[0] + dx, c[1] + dy];
+        if dx.hypot(dy) < 1e-9 * r {
+            break;
+        }
+    }
+    let moved = c[0].hypot(c[1]);
+    (moved.is_finite()).then(|| {
+        if moved > r {
+            [c[0] * r / moved, c[1] * r / moved]
+        } else {
+            c
+        }
+    })
+}
+
 fn dist(p: &[f64; 2], c: [f64; 2]) -> f64 {
     (p[0] - c[0]).hypot(p[1] - c[1])
 }
@@ -163,6 +226,26 @@ mod tests {
         assert!((c.centre[0] - 1.0).abs() < 1e-9 && (c.centre[1] + 2.0).abs() < 1e-9);
         assert!((c.radius_m - 0.05).abs() < 1e-9);
         assert!(c.coverage > 0.4 && c.coverage < 0.6, "{}", c.coverage);
+    }
+
+    #[test]
+    fn known_radius_centres_a_quarter_arc() {
+        // A quarter of a 1 cm circle around (3 mm, −2 mm), 2 % noise: a free fit of so short
+        // an arc is poor, the known radius pins the centre.
+        let pts: Vec<[f64; 2]> = (0..12)
+            .map(|k| {
+                let a = 0.2 + 1.4 * k as f64 / 11.0;
+                let r = 0.01 * (1.0 + 0.02 * if k % 2 == 0 { 1.0 } else { -1.0 });
+                [0.003 + r * a.cos(), -0.002 + r * a.sin()]
+            })
+            .collect();
+        let c = centre_with_radius(&pts, 0.01).expect("fits");
+        assert!(
+            (c[0] - 0.003).abs() < 5e-4 && (c[1] + 0.002).abs() < 5e-4,
+            "{c:?}"
+        );
+        assert!(centre_with_radius(&pts[..2], 0.01).is_none());
+        assert!(centre_with_radius(&pts, 0.0).is_none());
     }
 
     #[test]

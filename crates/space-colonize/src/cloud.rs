@@ -130,7 +130,7 @@ fn derive(
         .unwrap_or((KILL_PER_TRUNK_RADIUS * trunk_radius_m).max(MIN_KILL_SPACINGS * spacing_m));
     let twig_kill_distance_m = config
         .twig_kill_distance_m
-        .unwrap_or(MIN_KILL_SPACINGS * spacing_m);
+        .unwrap_or((MIN_KILL_SPACINGS * spacing_m).min(crate::config::MAX_TWIG_KILL_M));
     let step_m = config.step_m.unwrap_or(
         (STEP_SPACINGS * spacing_m)
             .max(MIN_STEP_PER_KILL * kill_distance_m)

@@ -18,6 +18,10 @@ pub const STEP_SPACINGS: f64 = 1.5;
 /// the scan density, so growth on a denser scan of the same tree costs O(n log n), not
 /// O(n^1.5) (each node's influence query returns O(n) points).
 pub const MIN_STEP_PER_KILL: f64 = 0.25;
+/// Longest default kill distance of the twig pass, metres: a point is left up to the kill
+/// distance from its node, and the issue's coverage bound for sparse scans is 5 cm
+/// (`adtree/tree13.xyz`, 5.3 cm spacing, where 3 spacings would leave leaf clumps 16 cm off).
+pub const MAX_TWIG_KILL_M: f64 = 0.05;
 /// Influence radius per kill distance (2.5–3 in the issue; Runions et al. 2007, fig. 5).
 pub const INFLUENCE_PER_KILL: f64 = 2.75;
 /// Largest gap growth bridges, in influence radii (an occluded trunk stretch of a sparse
@@ -42,7 +46,10 @@ pub struct ColonizeConfig {
     /// Kill distance of the second pass, which grows the twigs the first pass (with its
     /// trunk-sized kill distance) never reached, from the whole first skeleton toward the
     /// points more than this from its surface, metres. Default: [`MIN_KILL_SPACINGS`] ×
-    /// spacing; equal to the kill distance or above turns the pass off.
+    /// spacing, at most [`MAX_TWIG_KILL_M`]; equal to the kill distance or above turns the
+    /// pass off. The pass keeps the first pass's influence radius (points the first model
+    /// missed, such as the leaf clumps of a sparse crown, can be far from it) and steps at
+    /// most half its kill distance.
     pub twig_kill_distance_m: Option<f64>,
     /// Segment length, metres. Default: [`STEP_SPACINGS`] × spacing, at least
     /// [`MIN_STEP_PER_KILL`] and at most half the kill distance.

@@ -43,6 +43,7 @@ pub(crate) struct Pass<'a> {
     pub attract: Vec<bool>,
     pub kill_m: f64,
     pub influence_m: f64,
+    pub step_m: f64,
     /// Bridge gaps up to `max_gap_m` when stalled.
     pub bridges: bool,
 }
@@ -136,7 +137,7 @@ pub(crate) fn grow(prep: &Prepared, pass: Pass<'_>) -> Result<Growth> {
             st.add_node(*pos, *parent)?;
         }
     }
-    let step = p.step_m;
+    let step = pass.step_m;
     let mut sum: Vec<[f64; 3]> = Vec::new();
     let mut count: Vec<u32> = Vec::new();
     let mut nearest: Vec<(f64, u32)> = Vec::new();

@@ -4,11 +4,11 @@ use nalgebra::{Point3, Vector3};
 use serde::Serialize;
 
 use crate::cloud::prepare;
-use crate::config::INFLUENCE_PER_KILL;
 use crate::config::{ColonizeConfig, Parameters};
 use crate::error::{ColonizeError, Result};
 use crate::grow::{Pass, grow};
-use crate::refine::{Graph, twig_stubs};
+use crate::metrics::NEAR_CLOUD_M;
+use crate::refine::{Graph, twig_stubs, unneeded_stubs};
 use crate::skeleton::{Branch, Skeleton};
 
 /// Laplacian passes on the grown nodes before centring.
@@ -17,7 +17,7 @@ const PRE_CENTRING_PASSES: usize = 3;
 /// The twig pass attracts only points at least this far from the first model's surface,
 /// metres: closer ones are the first model's radius and centring error, not missing twigs
 /// (the 2 cm fidelity bound).
-const TWIG_PASS_MIN_DISTANCE_M: f64 = crate::metrics::NEAR_CLOUD_M;
+const TWIG_PASS_MIN_DISTANCE_M: f64 = NEAR_CLOUD_M;
 
 /// Stages reported to a progress callback, in order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -52,6 +52,10 @@ pub struct GrowthReport {
     pub abandoned_points: usize,
     /// Terminal stubs removed.
     pub pruned_twigs: usize,
+    /// Whether the fitted radii were used (see [`ColonizeConfig::radius_fits`]); false when
+    /// not asked for or when they disagree with the pipe model by more than a factor of 2
+    /// at the median (leaf clumps, not wood).
+    pub radius_fits_used: bool,
 }
 
 /// A reconstructed tree.
@@ -110,6 +114,7 @@ pub fn reconstruct_with_progress(
             attract: prep.main.clone(),
             kill_m: p.kill_distance_m,
             influence_m: p.influence_m,
+            step_m: p.step_m,
             bridges: true,
         },
     )?;
@@ -141,7 +146,7 @@ pub fn reconstruct_with_progress(
             .then(|| graph.fit_radii(&prep.pts, &prep.main, &p));
         graph.to_skeleton(p.pipe_exponent, p.trunk_radius_m, fits.as_deref())
     };
-    let mut skeleton = radii(&graph)?;
+    let (mut skeleton, mut fits_used) = radii(&graph)?;
     // Twigs shorter than the kill distance were never grown: their points sit off the
     // model. Grow once more from the whole skeleton toward those, with a fine kill distance.
     let mut twig_growth = None;
@@ -160,7 +165,8 @@ pub fn reconstruct_with_progress(
                     seeds: (&seeds, &graph.parent),
                     attract,
                     kill_m: p.twig_kill_distance_m,
-                    influence_m: INFLUENCE_PER_KILL * p.twig_kill_distance_m,
+                    influence_m: p.influence_m,
+                    step_m: p.step_m.min(0.5 * p.twig_kill_distance_m),
                     bridges: false,
                 },
             )?;
@@ -169,20 +175,41 @@ pub fn reconstruct_with_progress(
                 graph.pos = g2.positions.iter().map(|x| Vector3::from(*x)).collect();
                 graph.parent = g2.parents.clone();
                 refine(&mut graph, from);
-                skeleton = radii(&graph)?;
+                (skeleton, fits_used) = radii(&graph)?;
             }
             twig_growth = Some(g2);
         }
     }
     let mut pruned = 0;
     for _ in 0..2 {
-        let (keep, twigs) = twig_stubs(&skeleton, p.min_twig_m);
-        if twigs == 0 {
+        let stubs = twig_stubs(&skeleton, p.min_twig_m);
+        if stubs.is_empty() {
             break;
         }
-        pruned += twigs;
+        let mut keep = vec![true; graph.pos.len()];
+        stubs.iter().flatten().for_each(|&v| keep[v] = false);
+        let mut trial = graph.clone();
+        trial.retain(&keep);
+        let d = crate::metrics::point_distances(&prep.pts, &radii(&trial)?.0);
+        let remove = unneeded_stubs(&prep.pts, &prep.main, &skeleton, &stubs, &d, NEAR_CLOUD_M);
+        let removed = remove.iter().filter(|&&r| r).count();
+        if removed == 0 {
+            break;
+        }
+        for (stub, _) in stubs.iter().zip(&remove).filter(|(_, r)| !**r) {
+            stub.iter().for_each(|&v| keep[v] = true);
+        }
+        pruned += removed;
         graph.retain(&keep);
-        skeleton = radii(&graph)?;
+        (skeleton, fits_used) = radii(&graph)?;
+    }
+    if config.centring {
+        // With the radii known, fit circles of those radii: thin branches of one-sided views
+        // had only centroids.
+        let r: Vec<f64> = skeleton.nodes().iter().map(|n| n.radius_m).collect();
+        graph.centre_on_radius(&prep.pts, &prep.main, &r);
+        graph.smooth_from(config.smoothing_iterations, 0, true);
+        (skeleton, fits_used) = radii(&graph)?;
     }
     let branches = skeleton.branches();
     Ok(Reconstruction {
@@ -197,6 +224,7 @@ pub fn reconstruct_with_progress(
             unreached_points: g.unreached,
             abandoned_points: g.abandoned,
             pruned_twigs: pruned,
+            radius_fits_used: fits_used,
         },
         skeleton,
         branches,

@@ -5,7 +5,7 @@ use kiddo::SquaredEuclidean;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use nalgebra::{Point3, Vector3};
 
-use crate::circle::fit_circle;
+use crate::circle::{centre_with_radius, fit_circle};
 use crate::config::Parameters;
 use crate::error::Result;
 use crate::skeleton::{Skeleton, SkeletonNode};
@@ -31,6 +31,10 @@ const MIN_TAPER_FITS: usize = 3;
 const TAUBIN_LAMBDA: f64 = 0.5;
 /// See [`TAUBIN_LAMBDA`].
 const TAUBIN_MU: f64 = -0.53;
+/// Largest median ratio of fitted radii to the pure pipe model (or its inverse) for the
+/// fits to be used: on the leaf-off coffee tree the median is 1.3; on the leafy
+/// `adtree/tree13.xyz` 5.8 (circle fits to leaf clumps).
+const MAX_FIT_PIPE_RATIO: f64 = 2.0;
 /// Centring passes (the assignment of points to nodes is redone between them).
 const CENTRING_PASSES: usize = 4;
 
@@ -210,6 +214,31 @@ impl Graph {
         }
     }
 
+    /// Move nodes (not forks or their neighbours) onto the axis of a circle of the model's
+    /// radius through their cross-section (a least-squares cylinder of known radius), in
+    /// [`CENTRING_PASSES`] passes. After the radii are known this places thin branches
+    /// of one-sided views, where [`Self::centre`] has only centroids.
+    pub(crate) fn centre_on_radius(&mut self, pts: &[[f64; 3]], keep: &[bool], radius_m: &[f64]) {
+        for _ in 0..CENTRING_PASSES {
+            let a = self.assign(pts, keep);
+            let children = self.children();
+            let mut moved = self.pos.clone();
+            let mut plane: Vec<[f64; 2]> = Vec::new();
+            for (i, m) in moved.iter_mut().enumerate() {
+                if near_fork(i, &self.parent, &children) {
+                    continue;
+                }
+                let Some((u, v)) = self.cross_section(i, &a, &children, pts, &mut plane) else {
+                    continue;
+                };
+                if let Some(c) = centre_with_radius(&plane, radius_m[i]) {
+                    *m += u * c[0] + v * c[1];
+                }
+            }
+            self.pos = moved;
+        }
+    }
+
     /// Radius measured at each node where a circle fits its cross-section well (see
     /// [`RELIABLE_FIT_POINTS`]), median-filtered along the branch; `None` elsewhere.
     pub(crate) fn fit_radii(
@@ -335,13 +364,16 @@ impl Graph {
     /// length of tree it carries, so r_parent^e = Σ r_child^e at every fork, scaled so that
     /// the trunk segment at the base has `base_radius_m`. With `fits`, every node with a
     /// measured radius is an anchor too: it takes the measurement, and the nodes beyond it
-    /// follow the pipe model scaled from the nearest anchor toward the root.
+    /// follow the pipe model scaled from the nearest anchor toward the root. Fits whose
+    /// median departs from the pipe model by more than [`MAX_FIT_PIPE_RATIO`] are not
+    /// used: they measure something else than wood (the leaf clumps of a crown in leaf).
+    /// Returns the skeleton and whether the fits were used.
     pub(crate) fn to_skeleton(
         &self,
         exponent: f64,
         base_radius_m: f64,
         fits: Option<&[Option<f64>]>,
-    ) -> Result<Skeleton> {
+    ) -> Result<(Skeleton, bool)> {
         let flat = Skeleton::new(
             self.pos
                 .iter()
@@ -366,6 +398,18 @@ impl Graph {
             .map(|&w| (scale * w).powf(1.0 / exponent))
             .collect();
         let mut radius = pipe.clone();
+        let fits = fits.filter(|f| {
+            let mut ratios: Vec<f64> = f
+                .iter()
+                .zip(&pipe)
+                .filter_map(|(r, &q)| r.filter(|_| q > 0.0).map(|r| r / q))
+                .collect();
+            ratios.sort_by(f64::total_cmp);
+            ratios
+                .get(ratios.len() / 2)
+                .is_some_and(|&m| (1.0 / MAX_FIT_PIPE_RATIO..=MAX_FIT_PIPE_RATIO).contains(&m))
+        });
+        let used = fits.is_some();
         if let Some(fits) = fits {
             let mut ratio = vec![1.0; pipe.len()];
             for &i in flat.topological_order() {
@@ -377,7 +421,7 @@ impl Graph {
                 radius[i] = pipe[i] * ratio[i];
             }
         }
-        Skeleton::new(
+        let skeleton = Skeleton::new(
             flat.nodes()
                 .iter()
                 .map(|x| SkeletonNode {
@@ -385,7 +429,8 @@ impl Graph {
                     ..*x
                 })
                 .collect(),
-        )
+        )?;
+        Ok((skeleton, used))
     }
 }
 
@@ -450,31 +495,121 @@ impl Assignment {
     }
 }
 
-/// Remove terminal branches that reach less than `min_twig_m` beyond the surface of the
-/// branch they grow from: stubs that space colonization grows toward the near side of a
-/// thick branch. Returns the nodes to keep.
-pub(crate) fn twig_stubs(skeleton: &Skeleton, min_twig_m: f64) -> (Vec<bool>, usize) {
-    let mut keep = vec![true; skeleton.nodes().len()];
-    let mut twigs = 0;
+/// Terminal branches that reach less than `min_twig_m` beyond the surface of the branch
+/// they grow from: candidates for removal as the stubs space colonization grows toward the
+/// near side of a thick branch. Each stub is its list of nodes.
+pub(crate) fn twig_stubs(skeleton: &Skeleton, min_twig_m: f64) -> Vec<Vec<usize>> {
     let nodes = skeleton.nodes();
-    for b in skeleton.branches() {
-        let (Some(base), Some(&tip)) = (b.base_node, b.nodes.last()) else {
-            continue;
-        };
-        if !skeleton.children(tip).is_empty() {
-            continue;
-        }
-        // Terminal: no branch grows from it.
-        if b.nodes.iter().any(|&v| skeleton.children(v).len() > 1) {
-            continue;
-        }
-        let reach = (nodes[tip].position - nodes[base].position).norm();
-        if reach < nodes[base].radius_m + min_twig_m {
-            twigs += 1;
-            for &v in &b.nodes {
-                keep[v] = false;
-            }
+    skeleton
+        .branches()
+        .into_iter()
+        .filter(|b| {
+            let (Some(base), Some(&tip)) = (b.base_node, b.nodes.last()) else {
+                return false;
+            };
+            // Terminal: no branch grows from it.
+            let terminal = b.nodes.iter().all(|&v| skeleton.children(v).len() <= 1)
+                && skeleton.children(tip).is_empty();
+            terminal
+                && (nodes[tip].position - nodes[base].position).norm()
+                    < nodes[base].radius_m + min_twig_m
+        })
+        .map(|b| b.nodes)
+        .collect()
+}
+
+/// Which `stubs` are artefacts: those no point needs. A stub is needed when a point that is
+/// farther than `near_m` from the model without the stubs (`pruned_distance`, per point) is
+/// nearer to one of the stub's nodes than to that model: a short twig into a leaf clump of
+/// a sparse crown, not a stub toward the surface of its own parent. Returns one flag per
+/// stub, true = remove.
+pub(crate) fn unneeded_stubs(
+    pts: &[[f64; 3]],
+    main: &[bool],
+    skeleton: &Skeleton,
+    stubs: &[Vec<usize>],
+    pruned_distance: &[f64],
+    near_m: f64,
+) -> Vec<bool> {
+    let mut remove = vec![true; stubs.len()];
+    let mut owner = Vec::new();
+    let mut positions = Vec::new();
+    for (s, stub) in stubs.iter().enumerate() {
+        for &v in stub {
+            let p = skeleton.nodes()[v].position;
+            owner.push(s);
+            positions.push([p.x, p.y, p.z]);
         }
     }
-    (keep, twigs)
+    if positions.is_empty() {
+        return remove;
+    }
+    let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&positions);
+    for ((q, &m), &d) in pts.iter().zip(main).zip(pruned_distance) {
+        if !m || d <= near_m {
+            continue;
+        }
+        let nb = tree.nearest_one::<SquaredEuclidean>(q);
+        if nb.distance.sqrt() < d {
+            remove[owner[nb.item as usize]] = false;
+        }
+    }
+    remove
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// A straight 1 m trunk up z in 10 cm steps, with a 6 cm side stub in +x from 50 cm.
+    fn trunk_with_stub() -> Graph {
+        let mut pos: Vec<Vector3<f64>> = (0..=10)
+            .map(|k| Vector3::new(0.0, 0.0, 0.1 * f64::from(k)))
+            .collect();
+        let mut parent: Vec<Option<usize>> = (0_usize..=10).map(|k| k.checked_sub(1)).collect();
+        pos.push(Vector3::new(0.03, 0.0, 0.5));
+        parent.push(Some(5));
+        pos.push(Vector3::new(0.06, 0.0, 0.5));
+        parent.push(Some(11));
+        Graph { pos, parent }
+    }
+
+    #[test]
+    fn fits_far_from_the_pipe_model_are_not_used() {
+        let g = trunk_with_stub();
+        let (pipe, _) = g.to_skeleton(2.5, 0.05, None).unwrap();
+        let scaled = |k: f64| -> Vec<Option<f64>> {
+            pipe.nodes().iter().map(|n| Some(k * n.radius_m)).collect()
+        };
+        let (near, used) = g.to_skeleton(2.5, 0.05, Some(&scaled(1.3))).unwrap();
+        assert!(used);
+        assert!((near.nodes()[3].radius_m / pipe.nodes()[3].radius_m - 1.3).abs() < 1e-9);
+        // Five times the pipe radius at the median: leaf clumps, not wood.
+        let (far, used) = g.to_skeleton(2.5, 0.05, Some(&scaled(5.0))).unwrap();
+        assert!(!used);
+        assert_eq!(far, pipe);
+    }
+
+    #[test]
+    fn a_stub_is_kept_only_when_a_point_needs_it() {
+        let g = trunk_with_stub();
+        let (sk, _) = g.to_skeleton(2.5, 0.02, None).unwrap();
+        let stubs = twig_stubs(&sk, 0.1);
+        assert_eq!(stubs, vec![vec![11, 12]]);
+        let trunk_r = sk.nodes()[5].radius_m;
+        // Distance of a point in the y = 0 plane at height 0.5 m to the trunk's surface.
+        let off_trunk = |x: f64| x.abs() - trunk_r;
+        // A point 30 cm out, beyond the stub's tip: only the stub comes near it.
+        let far = [[0.3, 0.0, 0.5]];
+        let remove = unneeded_stubs(&far, &[true], &sk, &stubs, &[off_trunk(0.3)], 0.02);
+        assert_eq!(remove, vec![false]);
+        // A point on the trunk's far side: the trunk alone holds it.
+        let near = [[-0.03, 0.0, 0.5]];
+        let remove = unneeded_stubs(&near, &[true], &sk, &stubs, &[off_trunk(-0.03)], 0.02);
+        assert_eq!(remove, vec![true]);
+        // Points outside the main cluster do not count.
+        let remove = unneeded_stubs(&far, &[false], &sk, &stubs, &[off_trunk(0.3)], 0.02);
+        assert_eq!(remove, vec![true]);
+    }
 }
