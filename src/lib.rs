@@ -1,5 +1,7 @@
 #![doc = include_str!("../README.md")]
 
+#[cfg(feature = "beam-anim")]
+pub use beam_anim;
 #[cfg(feature = "branch-angles")]
 pub use branch_angles;
 #[cfg(feature = "kinect-io")]
@@ -16,6 +18,8 @@ pub use nalgebra;
 
 /// The preludes of every enabled crate.
 pub mod prelude {
+    #[cfg(feature = "beam-anim")]
+    pub use beam_anim::prelude::*;
     #[cfg(feature = "branch-angles")]
     pub use branch_angles::prelude::*;
     #[cfg(feature = "kinect-io")]

@@ -1,0 +1,5 @@
+#![allow(missing_docs, clippy::expect_used, clippy::unwrap_used, clippy::panic)]
+
+mod bad_input;
+mod release;
+mod wind;
