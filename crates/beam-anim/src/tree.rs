@@ -110,11 +110,10 @@ pub fn validate_nodes(nodes: &[SkeletonNode]) -> Result<Skeleton> {
             state[w] = 2;
         }
     }
-    let Some(&root) = roots.first() else {
+    if roots.is_empty() {
         return Err(bad("no root (every node has a parent)".into()));
-    };
+    }
     if let Some(&second) = roots.get(1) {
-        let _ = root;
         return Err(AnimError::Disconnected { node: second });
     }
     for node in nodes {
@@ -125,6 +124,27 @@ pub fn validate_nodes(nodes: &[SkeletonNode]) -> Result<Skeleton> {
         }
     }
     Skeleton::new(nodes.to_vec()).map_err(|e| bad(e.to_string()))
+}
+
+/// Branches (sorted so that parents come first) in depth-first pre-order.
+fn depth_first(raw: Vec<space_colonize::Branch>) -> Vec<space_colonize::Branch> {
+    let index: HashMap<usize, usize> = raw.iter().enumerate().map(|(k, b)| (b.id, k)).collect();
+    let mut children = vec![Vec::new(); raw.len()];
+    let mut roots = Vec::new();
+    for (k, b) in raw.iter().enumerate() {
+        match b.parent.and_then(|p| index.get(&p)) {
+            Some(&pi) => children[pi].push(k),
+            None => roots.push(k),
+        }
+    }
+    let mut order = Vec::with_capacity(raw.len());
+    let mut stack: Vec<usize> = roots.into_iter().rev().collect();
+    while let Some(k) = stack.pop() {
+        order.push(k);
+        stack.extend(children[k].iter().rev());
+    }
+    let mut slots: Vec<Option<space_colonize::Branch>> = raw.into_iter().map(Some).collect();
+    order.into_iter().filter_map(|k| slots[k].take()).collect()
 }
 
 fn lerp_point(a: &Point3<f64>, b: &Point3<f64>, t: f64) -> Point3<f64> {
@@ -168,6 +188,9 @@ impl BeamTree {
             rank[v] = k;
         }
         raw.sort_by_key(|b| b.base_node.map_or(0, |n| rank[n] + 1));
+        // Then depth first (pre-order), children in the order they leave their parent, so
+        // that a branch's descendants follow it closely (locality for the frame loop).
+        let raw = depth_first(raw);
         let by_id: HashMap<usize, usize> = raw.iter().enumerate().map(|(k, b)| (b.id, k)).collect();
         // Arc length of every node along its branch's polyline (from the branch base).
         let mut arc = vec![0.0; nodes.len()];

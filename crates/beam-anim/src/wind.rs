@@ -456,14 +456,19 @@ pub fn drag_n(
     length_m: f64,
     config: &WindConfig,
 ) -> Vector3<f64> {
+    drag_on_area_n(velocity, axis, 2.0 * radius_m * length_m, config)
+}
+
+/// [`drag_n`] for a frontal area `area_m2` = 2 r l.
+#[inline]
+pub(crate) fn drag_on_area_n(
+    velocity: &Vector3<f64>,
+    axis: &Vector3<f64>,
+    area_m2: f64,
+    config: &WindConfig,
+) -> Vector3<f64> {
     let un = velocity - axis * velocity.dot(axis);
-    un * (0.5
-        * config.air_density_kg_m3
-        * config.drag_coefficient
-        * 2.0
-        * radius_m
-        * length_m
-        * un.norm())
+    un * (0.5 * config.air_density_kg_m3 * config.drag_coefficient * area_m2 * un.norm())
 }
 
 /// Power spectral density by Welch's method (Hann windows of `segment` samples, half
