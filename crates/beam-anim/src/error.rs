@@ -89,6 +89,14 @@ pub enum AnimError {
         /// The frame step.
         dt_s: f64,
     },
+    /// More segments than a glTF skin can address with 16-bit joint indices.
+    #[error("{joints} segments need {joints} joints; a glTF export allows at most {max}")]
+    TooManyJoints {
+        /// Joints needed (one per segment).
+        joints: usize,
+        /// The limit.
+        max: usize,
+    },
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
@@ -111,6 +119,20 @@ pub enum AnimError {
 pub type Result<T> = std::result::Result<T, AnimError>;
 
 impl AnimError {
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        Self::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    pub(crate) fn format(path: &std::path::Path, reason: impl Into<String>) -> Self {
+        Self::Format {
+            path: path.to_path_buf(),
+            reason: reason.into(),
+        }
+    }
+
     pub(crate) fn param(name: &'static str, reason: impl Into<String>) -> Self {
         Self::InvalidParameter {
             name,

@@ -23,20 +23,30 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod assign;
 mod error;
+pub mod export;
 mod oscillator;
 mod procedural;
 mod sim;
 mod tree;
 pub mod wind;
 
+pub use assign::{Assignment, DynamicsSource, DynamicsSpec, MeasuredDynamics};
 pub use error::{AnimError, Result};
+pub use export::{
+    GlbOptions, MAX_GLTF_JOINTS, angles_csv, bvh_string, displacement_csv, glb_bytes, write_bvh,
+    write_glb,
+};
 pub use oscillator::{
     Dynamics, EULER_TOLERANCE, Integrator, MAX_SUBSTEPS, PAPER_DYNAMICS, free_response, gain,
 };
 pub use procedural::procedural_tree;
 pub use sim::{AnimConfig, Forcing, IntegratorReport, Pose, Simulation};
-pub use tree::{BeamBranch, BeamTree, GREEN_WOOD_DENSITY_KG_M3, SEGMENTS, validate_nodes};
+pub use tree::{
+    BeamBranch, BeamTree, GREEN_WOOD_DENSITY_KG_M3, SEGMENTS, read_skeleton, skeleton_from_json,
+    validate_nodes,
+};
 pub use wind::{Spectrum, WindConfig, WindField};
 
 /// The types most programs need.

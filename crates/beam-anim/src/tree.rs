@@ -47,6 +47,53 @@ pub struct BeamTree {
     by_id: HashMap<usize, usize>,
 }
 
+/// One node of space-colonize's skeleton JSON.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JsonNode {
+    id: usize,
+    parent: Option<usize>,
+    position: [f64; 3],
+    radius: f64,
+}
+
+/// space-colonize's skeleton JSON: `{"nodes": [{"id", "parent", "position", "radius"}]}`.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JsonSkeleton {
+    nodes: Vec<JsonNode>,
+}
+
+/// Parse space-colonize's skeleton JSON and check it with [`validate_nodes`]; `path` names
+/// the text in errors.
+///
+/// # Errors
+/// [`AnimError::Format`] for JSON that is not a skeleton, then as [`validate_nodes`].
+pub fn skeleton_from_json(text: &str, path: &std::path::Path) -> Result<Skeleton> {
+    let doc: JsonSkeleton =
+        serde_json::from_str(text).map_err(|e| AnimError::format(path, e.to_string()))?;
+    let nodes: Vec<SkeletonNode> = doc
+        .nodes
+        .into_iter()
+        .map(|n| SkeletonNode {
+            id: n.id,
+            parent: n.parent,
+            position: Point3::from(n.position),
+            radius_m: n.radius,
+        })
+        .collect();
+    validate_nodes(&nodes)
+}
+
+/// Read a skeleton JSON file (space-colonize's `--out-skeleton`).
+///
+/// # Errors
+/// [`AnimError::Io`], then as [`skeleton_from_json`].
+pub fn read_skeleton(path: &std::path::Path) -> Result<Skeleton> {
+    let text = std::fs::read_to_string(path).map_err(|e| AnimError::io(path, e))?;
+    skeleton_from_json(&text, path)
+}
+
 /// Validate raw skeleton nodes (ids 0..n in any order) with this crate's errors.
 ///
 /// # Errors
