@@ -135,9 +135,10 @@ pub struct Simulation {
     branches: Vec<BranchState>,
     /// Each branch's attachment frame.
     attach: Vec<Attach>,
-    /// Branches hanging on segment `s`: `children[children_at[s]..children_at[s + 1]]`.
+    /// Branches hanging on branch `i`, as (its segment, child branch):
+    /// `children[children_at[i]..children_at[i + 1]]`.
     children_at: Vec<usize>,
-    children: Vec<usize>,
+    children: Vec<(usize, usize)>,
     /// Each branch's wind force in its rest frame (its parent's rotation undone), newtons.
     forces: Vec<Vector3<f64>>,
     dir: Vec<Vector3<f64>>,
@@ -316,21 +317,22 @@ impl Simulation {
         }
         let n = segments.len();
         let nb = branches.len();
-        let mut children_at = vec![0usize; n + 1];
+        // Per branch, the branches hanging on it: (its segment, child index).
+        let mut children_at = vec![0usize; nb + 1];
         for b in tree.branches() {
             if let Some(ps) = b.parent_segment {
-                children_at[ps + 1] += 1;
+                children_at[ps / SEGMENTS + 1] += 1;
             }
         }
-        for s in 0..n {
-            children_at[s + 1] += children_at[s];
+        for i in 0..nb {
+            children_at[i + 1] += children_at[i];
         }
-        let mut children = vec![0usize; children_at[n]];
+        let mut children = vec![(0usize, 0usize); children_at[nb]];
         let mut fill = children_at.clone();
         for (bi, b) in tree.branches().iter().enumerate() {
             if let Some(ps) = b.parent_segment {
-                children[fill[ps]] = bi;
-                fill[ps] += 1;
+                children[fill[ps / SEGMENTS]] = (ps % SEGMENTS, bi);
+                fill[ps / SEGMENTS] += 1;
             }
         }
         let mut sim = Self {
@@ -534,6 +536,8 @@ impl Simulation {
         let pose = &mut self.pose;
         let attach = &mut self.attach;
         let (children_at, children) = (&self.children_at, &self.children);
+        let mut locals = pose.local.chunks_exact_mut(SEGMENTS);
+        let mut dirs = self.dir.chunks_exact_mut(SEGMENTS);
         let per_branch = self
             .branches
             .iter_mut()
@@ -569,18 +573,23 @@ impl Simulation {
                 mut start,
             } = attach[i];
             start += g * b.base_offset;
-            let first = i * SEGMENTS;
-            for (j, seg) in segs.iter().enumerate() {
-                let s = first + j;
+            let mut frames = [Attach::default(); SEGMENTS];
+            let outputs = locals
+                .next()
+                .into_iter()
+                .flatten()
+                .zip(dirs.next().into_iter().flatten());
+            for ((seg, (local, dir)), frame) in segs.iter().zip(outputs).zip(frames.iter_mut()) {
                 let q = rotation(&(seg.lever.cross(&x) * scale));
                 g *= q;
                 let a = g * seg.dir;
-                pose.local[s] = q;
-                self.dir[s] = a;
-                for &c in &children[children_at[s]..children_at[s + 1]] {
-                    attach[c] = Attach { rotation: g, start };
-                }
+                *local = q;
+                *dir = a;
+                *frame = Attach { rotation: g, start };
                 start += a * seg.length_m;
+            }
+            for &(j, c) in &children[children_at[i]..children_at[i + 1]] {
+                attach[c] = frames[j];
             }
             pose.angle_rad[i] = (xu * b.angle_uw[0] + xw * b.angle_uw[1]) * scale;
             pose.displacement_m[i] = b.x;
