@@ -168,6 +168,40 @@ impl Default for Attach {
     }
 }
 
+/// Taylor coefficients in h² = |φ|²/4 of sin(|φ|/2)/|φ| and cos(|φ|/2), as many terms as
+/// the angle needs for a truncation error below 2e-16: the short ones for |φ|² below
+/// [`SHORT_SERIES_BELOW`] (|φ| < 0.02, where the angles of bending mostly are), the long ones
+/// below [`SERIES_BELOW`] (|φ| < 0.25); beyond, `sin_cos`.
+const SIN_HALF_SHORT: [f64; 3] = [0.5, -1.0 / 12.0, 1.0 / 240.0];
+const COS_HALF_SHORT: [f64; 4] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0];
+const SIN_HALF_LONG: [f64; 5] = [
+    0.5,
+    -1.0 / 12.0,
+    1.0 / 240.0,
+    -1.0 / 10_080.0,
+    1.0 / 725_760.0,
+];
+const COS_HALF_LONG: [f64; 6] = [
+    1.0,
+    -0.5,
+    1.0 / 24.0,
+    -1.0 / 720.0,
+    1.0 / 40_320.0,
+    -1.0 / 3_628_800.0,
+];
+const SHORT_SERIES_BELOW: f64 = 4e-4;
+const SERIES_BELOW: f64 = 0.0625;
+
+/// Σ c[k] h2^k by Horner's rule (unrolled: the length is a constant).
+#[inline(always)]
+fn horner<const N: usize>(c: &[f64; N], h2: f64) -> f64 {
+    let mut acc = c[N - 1];
+    for k in (0..N - 1).rev() {
+        acc = c[k] + h2 * acc;
+    }
+    acc
+}
+
 /// Two lanes of f64 (two branches side by side).
 type Lanes = [f64; 2];
 
@@ -238,7 +272,7 @@ fn rotation2(phi: &[Lanes; 3]) -> [Lanes; 4] {
         mul2(phi[2], phi[2]),
     );
     let big = a2[0].max(a2[1]);
-    if big >= 0.0625 {
+    if big >= SERIES_BELOW {
         let q = [0, 1].map(|l| rotation(&Vector3::new(phi[0][l], phi[1][l], phi[2][l])));
         return [
             [q[0].w, q[1].w],
@@ -255,29 +289,10 @@ fn rotation2(phi: &[Lanes; 3]) -> [Lanes; 4] {
         }
         acc
     };
-    let (s, c) = if big < 4e-4 {
-        (
-            horner(&[0.5, -1.0 / 12.0, 1.0 / 240.0]),
-            horner(&[1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0]),
-        )
+    let (s, c) = if big < SHORT_SERIES_BELOW {
+        (horner(&SIN_HALF_SHORT), horner(&COS_HALF_SHORT))
     } else {
-        (
-            horner(&[
-                0.5,
-                -1.0 / 12.0,
-                1.0 / 240.0,
-                -1.0 / 10_080.0,
-                1.0 / 725_760.0,
-            ]),
-            horner(&[
-                1.0,
-                -0.5,
-                1.0 / 24.0,
-                -1.0 / 720.0,
-                1.0 / 40_320.0,
-                -1.0 / 3_628_800.0,
-            ]),
-        )
+        (horner(&SIN_HALF_LONG), horner(&COS_HALF_LONG))
     };
     [c, mul2(phi[0], s), mul2(phi[1], s), mul2(phi[2], s)]
 }
@@ -288,24 +303,10 @@ fn rotation2(phi: &[Lanes; 3]) -> [Lanes; 4] {
 fn rotation(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
     let a2 = phi.norm_squared();
     let h2 = 0.25 * a2;
-    // sin(|φ|/2)/|φ| and cos(|φ|/2) by their Taylor series in h² = |φ|²/4, Horner form
-    // with constant coefficients, as many terms as the angle needs for a truncation error
-    // below 2e-16 (the angles of bending are mostly far below 0.02 rad).
-    let (s_over, c) = if a2 < 4e-4 {
-        // |φ| < 0.02: next terms h⁶/10080 < 1.1e-16 and h⁸/40320 < 3e-21.
-        let s = 0.5 + h2 * (-1.0 / 12.0 + h2 * (1.0 / 240.0));
-        let c = 1.0 + h2 * (-0.5 + h2 * (1.0 / 24.0 + h2 * (-1.0 / 720.0)));
-        (s, c)
-    } else if a2 < 0.0625 {
-        // |φ| < 0.25: next terms below 1e-16.
-        let s = 0.5
-            + h2 * (-1.0 / 12.0
-                + h2 * (1.0 / 240.0 + h2 * (-1.0 / 10_080.0 + h2 * (1.0 / 725_760.0))));
-        let c = 1.0
-            + h2 * (-0.5
-                + h2 * (1.0 / 24.0
-                    + h2 * (-1.0 / 720.0 + h2 * (1.0 / 40_320.0 + h2 * (-1.0 / 3_628_800.0)))));
-        (s, c)
+    let (s_over, c) = if a2 < SHORT_SERIES_BELOW {
+        (horner(&SIN_HALF_SHORT, h2), horner(&COS_HALF_SHORT, h2))
+    } else if a2 < SERIES_BELOW {
+        (horner(&SIN_HALF_LONG, h2), horner(&COS_HALF_LONG, h2))
     } else {
         let a = a2.sqrt();
         let (s, c) = (0.5 * a).sin_cos();
