@@ -480,188 +480,398 @@ fn scene_objects(scene: &Scene, world_to_camera: &Isometry3<f64>) -> Result<Vec<
     Ok(objects)
 }
 
+/// Side of the square pixel tiles whose objects are culled together.
+const TILE_PX: u32 = 16;
+
+/// A cone holding every ray of a tile: unit axis and half-angle (cos, sin).
+#[derive(Debug, Clone, Copy)]
+struct Cone {
+    axis: Vector3<f64>,
+    cos: f64,
+    sin: f64,
+}
+
+/// The rays of one camera, computed once: per pixel the unit ray (`None` where the
+/// distortion cannot be inverted) and the factor from distance along the ray to depth along
+/// the optical axis, and per tile a cone holding its rays.
+#[derive(Debug, Clone)]
+struct RayGrid {
+    width: u32,
+    height: u32,
+    rays: Vec<Option<(Vector3<f64>, f64)>>,
+    tiles_x: u32,
+    cones: Vec<Option<Cone>>,
+}
+
+impl RayGrid {
+    fn new(camera: &CameraModel) -> Self {
+        let (w, h) = (camera.width, camera.height);
+        let mut rays = Vec::with_capacity(camera.pixel_count());
+        for v in 0..h {
+            for u in 0..w {
+                rays.push(
+                    camera
+                        .unproject_normalized(&Point2::new(f64::from(u), f64::from(v)))
+                        .map(|r| {
+                            let d = Vector3::new(r.x, r.y, 1.0);
+                            let len = d.norm();
+                            (d / len, 1.0 / len)
+                        }),
+                );
+            }
+        }
+        let tiles_x = w.div_ceil(TILE_PX);
+        let tiles_y = h.div_ceil(TILE_PX);
+        let mut cones = Vec::with_capacity((tiles_x * tiles_y) as usize);
+        for ty in 0..tiles_y {
+            for tx in 0..tiles_x {
+                let tile_rays = || {
+                    (ty * TILE_PX..((ty + 1) * TILE_PX).min(h)).flat_map(move |v| {
+                        (tx * TILE_PX..((tx + 1) * TILE_PX).min(w))
+                            .map(move |u| (v * w + u) as usize)
+                    })
+                };
+                let sum: Vector3<f64> = tile_rays().filter_map(|i| rays[i].map(|r| r.0)).sum();
+                let cone = sum.try_normalize(1e-12).map(|axis| {
+                    let cos = tile_rays()
+                        .filter_map(|i| rays[i].map(|r| r.0.dot(&axis)))
+                        .fold(1.0f64, f64::min)
+                        .clamp(-1.0, 1.0);
+                    // Widen by a hair for rounding.
+                    let angle = cos.acos() + 1e-9;
+                    Cone {
+                        axis,
+                        cos: angle.cos(),
+                        sin: angle.sin(),
+                    }
+                });
+                cones.push(cone);
+            }
+        }
+        Self {
+            width: w,
+            height: h,
+            rays,
+            tiles_x,
+            cones,
+        }
+    }
+
+    /// Indices of the objects some ray of `tile` may hit: those without a bound, those whose
+    /// bounding sphere holds the camera, and those whose sphere's cone of view meets the
+    /// tile's cone.
+    fn candidates(&self, tile: usize, objects: &[Object], out: &mut Vec<usize>) {
+        out.clear();
+        let Some(cone) = self.cones[tile] else {
+            return;
+        };
+        for (k, o) in objects.iter().enumerate() {
+            let Some((c, r)) = o.bound else {
+                out.push(k);
+                continue;
+            };
+            let dist = c.norm();
+            if dist <= r {
+                out.push(k);
+                continue;
+            }
+            // Angle between the axis and the centre at most the cone's half-angle plus the
+            // sphere's angular radius: cos(angle) >= cos(alpha + beta).
+            let (sin_b, cos_b) = (r / dist, (1.0 - (r / dist).powi(2)).sqrt());
+            let cos_sum = cone.cos * cos_b - cone.sin * sin_b;
+            let sin_sum = cone.sin * cos_b + cone.cos * sin_b;
+            // (alpha + beta beyond a half turn: sin_sum < 0; every direction is inside.)
+            if sin_sum < 0.0 || cone.axis.dot(&c) >= cos_sum * dist {
+                out.push(k);
+            }
+        }
+    }
+}
+
 /// Ray-cast one camera: per pixel the depth along the optical axis (`None` for no hit) and,
 /// optionally, the shaded colour.
 fn raycast(
-    camera: &CameraModel,
+    grid: &RayGrid,
     objects: &[Object],
     light_camera: &Vector3<f64>,
     sky: [u8; 3],
     mut color: Option<&mut RgbImage>,
 ) -> Vec<Option<f64>> {
-    let mut depth = Vec::with_capacity(camera.pixel_count());
-    for v in 0..camera.height {
-        for u in 0..camera.width {
-            let Some(ray) = camera.unproject_normalized(&Point2::new(f64::from(u), f64::from(v)))
-            else {
-                depth.push(None);
-                continue;
-            };
-            let d = Vector3::new(ray.x, ray.y, 1.0);
-            let len = d.norm();
-            let d = d / len;
-            let hit = cast(objects, &d);
-            depth.push(hit.map(|(t, _, _)| t / len));
-            if let Some(img) = color.as_deref_mut() {
-                let rgb = match hit {
-                    None => sky,
-                    Some((_, k, n)) => {
-                        let n = if n.dot(&d) > 0.0 { -n } else { n };
-                        let lambert = n.dot(light_camera).max(0.0);
-                        let shade = if objects[k].marker {
-                            0.8 + 0.2 * lambert
-                        } else {
-                            AMBIENT + (1.0 - AMBIENT) * lambert
-                        };
-                        objects[k]
-                            .rgb
-                            .map(|c| (f64::from(c) * shade).round().clamp(0.0, 255.0) as u8)
-                    }
+    let (w, h) = (grid.width, grid.height);
+    let mut depth = vec![None; grid.rays.len()];
+    let mut candidates = Vec::with_capacity(objects.len());
+    let mut local = Vec::with_capacity(objects.len());
+    if let Some(img) = color.as_deref_mut() {
+        for p in img.pixels_mut() {
+            *p = image::Rgb(sky);
+        }
+    }
+    for (tile, _) in grid.cones.iter().enumerate() {
+        grid.candidates(tile, objects, &mut candidates);
+        if candidates.is_empty() {
+            continue;
+        }
+        local.clear();
+        local.extend(candidates.iter().map(|&k| objects[k]));
+        let (tx, ty) = (tile as u32 % grid.tiles_x, tile as u32 / grid.tiles_x);
+        for v in ty * TILE_PX..((ty + 1) * TILE_PX).min(h) {
+            for u in tx * TILE_PX..((tx + 1) * TILE_PX).min(w) {
+                let i = (v * w + u) as usize;
+                let Some((d, scale)) = grid.rays[i] else {
+                    continue;
                 };
-                img.put_pixel(u, v, image::Rgb(rgb));
+                let Some((t, k, n)) = cast(&local, &d) else {
+                    continue;
+                };
+                depth[i] = Some(t * scale);
+                if let Some(img) = color.as_deref_mut() {
+                    let n = if n.dot(&d) > 0.0 { -n } else { n };
+                    let lambert = n.dot(light_camera).max(0.0);
+                    let shade = if local[k].marker {
+                        0.8 + 0.2 * lambert
+                    } else {
+                        AMBIENT + (1.0 - AMBIENT) * lambert
+                    };
+                    let rgb = local[k].rgb.map(|c| to_u8(f64::from(c) * shade));
+                    img.put_pixel(u, v, image::Rgb(rgb));
+                }
             }
         }
     }
     depth
 }
 
-/// Render one frame of `scene` as the configured camera sees it.
+/// `v` rounded to the nearest integer in 0..=255 (halves up; `f64::round` is a library call
+/// at the baseline x86-64 target and cost a fifth of a frame).
+#[inline]
+fn to_u8(v: f64) -> u8 {
+    (v.clamp(0.0, 255.0) + 0.5) as u8
+}
+
+/// Quantiles of the standard normal at the centres of [`NORMAL_TABLE_LEN`] equal-probability
+/// bins: a table draw is one of them, picked by 16 random bits (the colour noise needs six
+/// million draws per Kinect V2 frame; Box–Muller's log, sqrt and cos cost more than the rest
+/// of the frame).
+const NORMAL_TABLE_LEN: usize = 1 << 16;
+
+fn normal_table() -> &'static [f64] {
+    static TABLE: std::sync::OnceLock<Vec<f64>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        // Invert the CDF, integrated with Simpson's rule on a fine grid over +-8 sigma.
+        const STEPS: usize = 1 << 20;
+        const SPAN: f64 = 8.0;
+        let dx = 2.0 * SPAN / STEPS as f64;
+        let pdf = |x: f64| (-0.5 * x * x).exp() / (2.0 * std::f64::consts::PI).sqrt();
+        let mut table = Vec::with_capacity(NORMAL_TABLE_LEN);
+        let mut cdf = 0.0;
+        let mut x = -SPAN;
+        for k in 0..NORMAL_TABLE_LEN {
+            let target = (k as f64 + 0.5) / NORMAL_TABLE_LEN as f64;
+            while x < SPAN {
+                let step = dx / 6.0 * (pdf(x) + 4.0 * pdf(x + 0.5 * dx) + pdf(x + dx));
+                if cdf + step >= target {
+                    // Linear within the step.
+                    table.push(x + dx * (target - cdf) / step);
+                    break;
+                }
+                cdf += step;
+                x += dx;
+            }
+            if table.len() <= k {
+                table.push(SPAN);
+            }
+        }
+        table
+    })
+}
+
+/// A renderer for one camera set-up: the rays of both cameras are computed once and reused
+/// for every frame (a capture of many frames renders several times faster than calling
+/// [`render`] per frame).
+#[derive(Debug, Clone)]
+pub struct Renderer {
+    config: SynthConfig,
+    depth_to_color: Isometry3<f64>,
+    depth_rays: RayGrid,
+    color_rays: RayGrid,
+}
+
+impl Renderer {
+    /// Check `config` and compute the rays of its cameras.
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] for an invalid calibration or noise config, or a
+    /// libfreenect2 calibration (not rendered: give the equivalent rigid calibration).
+    pub fn new(config: &SynthConfig) -> Result<Self> {
+        let cal = &config.calibration;
+        cal.validate()?;
+        config.noise.validate()?;
+        let depth_to_color = match cal.registration {
+            RegistrationModel::Freenect2 { .. } => {
+                return Err(KinectError::param(
+                    "synth calibration",
+                    "libfreenect2's polynomial model cannot be ray-cast; use a rigid calibration",
+                ));
+            }
+            _ => cal.depth_to_color()?.unwrap_or_else(Isometry3::identity),
+        };
+        Ok(Self {
+            config: config.clone(),
+            depth_to_color,
+            depth_rays: RayGrid::new(&cal.depth_camera),
+            color_rays: RayGrid::new(&cal.color_camera),
+        })
+    }
+
+    /// The configuration (its `seed` is the default of [`render`]).
+    pub fn config(&self) -> &SynthConfig {
+        &self.config
+    }
+
+    /// Render one frame of `scene` with noise seeded by `seed`.
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] for an invalid shape (non-positive radius, zero
+    /// normal, ground height not finite).
+    pub fn render(&self, scene: &Scene, seed: u64) -> Result<SynthFrame> {
+        let config = &self.config;
+        let cal = &config.calibration;
+        let depth_to_color = self.depth_to_color;
+        let light = scene
+            .light_direction
+            .try_normalize(1e-12)
+            .unwrap_or_else(Vector3::z);
+        let world_to_color = depth_to_color * config.world_to_depth;
+        let mut rng = SplitMix64::new(seed);
+
+        // Depth camera.
+        let dcam = cal.depth_camera;
+        let depth_objects = scene_objects(scene, &config.world_to_depth)?;
+        let truth_z = raycast(
+            &self.depth_rays,
+            &depth_objects,
+            &(config.world_to_depth * light),
+            scene.sky_rgb,
+            None,
+        );
+        let noise = &config.noise;
+        let (w, h) = (dcam.width as usize, dcam.height as usize);
+        let mut z_m: Vec<f64> = truth_z.iter().map(|z| z.unwrap_or(f64::NAN)).collect();
+        if noise.flying_pixel_probability > 0.0 {
+            let original = z_m.clone();
+            for v in 0..h {
+                for u in 0..w {
+                    let i = v * w + u;
+                    let z = original[i];
+                    if z.is_nan() {
+                        continue;
+                    }
+                    let mut far = None::<f64>;
+                    for (du, dv) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                        let (nu, nv) = (u as i64 + du, v as i64 + dv);
+                        if nu < 0 || nv < 0 || nu >= w as i64 || nv >= h as i64 {
+                            continue;
+                        }
+                        let zn = original[nv as usize * w + nu as usize];
+                        let zn = if zn.is_nan() { noise.max_depth_m } else { zn };
+                        if (zn - z).abs() > EDGE_JUMP_M
+                            && far.is_none_or(|f| (zn - z).abs() > (f - z).abs())
+                        {
+                            far = Some(zn);
+                        }
+                    }
+                    if let Some(zn) = far
+                        && rng.uniform() < noise.flying_pixel_probability
+                    {
+                        let mix = 0.2 + 0.6 * rng.uniform();
+                        z_m[i] = z + mix * (zn - z);
+                    }
+                }
+            }
+        }
+        let unit = cal.depth_unit_m;
+        let mut raw = vec![0u16; w * h];
+        for (i, z) in z_m.iter().enumerate() {
+            if z.is_nan() {
+                continue;
+            }
+            let sigma_mm = NOISE_MM[0] + NOISE_MM[1] * z + NOISE_MM[2] * z * z;
+            let noisy = z + noise.depth_noise_scale * sigma_mm * 1e-3 * rng.normal();
+            if noise.dropout_probability > 0.0 && rng.uniform() < noise.dropout_probability {
+                continue;
+            }
+            if !(noisy >= noise.min_depth_m && noisy <= noise.max_depth_m) {
+                continue;
+            }
+            let value = ((noisy - cal.depth_offset_m) / unit).round();
+            if value >= 1.0 && value <= f64::from(u16::MAX) {
+                raw[i] = value as u16;
+            }
+        }
+        let depth = DepthImage::new(dcam.width, dcam.height, unit, raw)?;
+
+        // Colour camera.
+        let ccam = cal.color_camera;
+        let color_objects = scene_objects(scene, &world_to_color)?;
+        let mut color = RgbImage::new(ccam.width, ccam.height);
+        raycast(
+            &self.color_rays,
+            &color_objects,
+            &(world_to_color * light),
+            scene.sky_rgb,
+            Some(&mut color),
+        );
+        if noise.color_noise_sigma > 0.0 {
+            let table = normal_table();
+            let sigma = noise.color_noise_sigma;
+            for chunk in color.chunks_mut(4) {
+                let bits = rng.next_u64();
+                for (k, c) in chunk.iter_mut().enumerate() {
+                    let z = table[((bits >> (16 * k)) & 0xFFFF) as usize];
+                    *c = to_u8(f64::from(*c) + sigma * z);
+                }
+            }
+        }
+
+        // Truth.
+        let markers = scene
+            .markers
+            .iter()
+            .map(|m| {
+                let pd = config.world_to_depth * m.center_m;
+                let depth_pixel = dcam.project(&pd);
+                let color_pixel = ccam.project(&(depth_to_color * pd));
+                let visible = depth_pixel
+                    .and_then(|px| dcam.pixel_at(&px))
+                    .and_then(|(u, v)| truth_z[v as usize * w + u as usize])
+                    .is_some_and(|z| (z - pd.z).abs() < 0.01);
+                MarkerTruth {
+                    id: m.id.clone(),
+                    world_m: m.center_m,
+                    depth_camera_m: pd,
+                    depth_pixel,
+                    color_pixel,
+                    visible,
+                }
+            })
+            .collect();
+        Ok(SynthFrame {
+            depth,
+            color,
+            markers,
+        })
+    }
+}
+
+/// Render one frame of `scene` as the configured camera sees it (noise seeded by
+/// `config.seed`). For many frames with one set-up, [`Renderer`] computes the rays once.
 ///
 /// # Errors
 /// [`KinectError::InvalidParameter`] for an invalid calibration, noise config, or shape
 /// (non-positive radius, zero normal), or a libfreenect2 calibration (not rendered: give the
 /// equivalent rigid calibration).
 pub fn render(scene: &Scene, config: &SynthConfig) -> Result<SynthFrame> {
-    let cal = &config.calibration;
-    cal.validate()?;
-    config.noise.validate()?;
-    let depth_to_color = match cal.registration {
-        RegistrationModel::Freenect2 { .. } => {
-            return Err(KinectError::param(
-                "synth calibration",
-                "libfreenect2's polynomial model cannot be ray-cast; use a rigid calibration",
-            ));
-        }
-        _ => cal.depth_to_color()?.unwrap_or_else(Isometry3::identity),
-    };
-    let light = scene
-        .light_direction
-        .try_normalize(1e-12)
-        .unwrap_or_else(Vector3::z);
-    let world_to_color = depth_to_color * config.world_to_depth;
-    let mut rng = SplitMix64::new(config.seed);
-
-    // Depth camera.
-    let dcam = cal.depth_camera;
-    let depth_objects = scene_objects(scene, &config.world_to_depth)?;
-    let truth_z = raycast(
-        &dcam,
-        &depth_objects,
-        &(config.world_to_depth * light),
-        scene.sky_rgb,
-        None,
-    );
-    let noise = &config.noise;
-    let (w, h) = (dcam.width as usize, dcam.height as usize);
-    let mut z_m: Vec<f64> = truth_z.iter().map(|z| z.unwrap_or(f64::NAN)).collect();
-    if noise.flying_pixel_probability > 0.0 {
-        let original = z_m.clone();
-        for v in 0..h {
-            for u in 0..w {
-                let i = v * w + u;
-                let z = original[i];
-                if z.is_nan() {
-                    continue;
-                }
-                let mut far = None::<f64>;
-                for (du, dv) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                    let (nu, nv) = (u as i64 + du, v as i64 + dv);
-                    if nu < 0 || nv < 0 || nu >= w as i64 || nv >= h as i64 {
-                        continue;
-                    }
-                    let zn = original[nv as usize * w + nu as usize];
-                    let zn = if zn.is_nan() { noise.max_depth_m } else { zn };
-                    if (zn - z).abs() > EDGE_JUMP_M
-                        && far.is_none_or(|f| (zn - z).abs() > (f - z).abs())
-                    {
-                        far = Some(zn);
-                    }
-                }
-                if let Some(zn) = far
-                    && rng.uniform() < noise.flying_pixel_probability
-                {
-                    let mix = 0.2 + 0.6 * rng.uniform();
-                    z_m[i] = z + mix * (zn - z);
-                }
-            }
-        }
-    }
-    let unit = cal.depth_unit_m;
-    let mut raw = vec![0u16; w * h];
-    for (i, z) in z_m.iter().enumerate() {
-        if z.is_nan() {
-            continue;
-        }
-        let sigma_mm = NOISE_MM[0] + NOISE_MM[1] * z + NOISE_MM[2] * z * z;
-        let noisy = z + noise.depth_noise_scale * sigma_mm * 1e-3 * rng.normal();
-        if noise.dropout_probability > 0.0 && rng.uniform() < noise.dropout_probability {
-            continue;
-        }
-        if !(noisy >= noise.min_depth_m && noisy <= noise.max_depth_m) {
-            continue;
-        }
-        let value = ((noisy - cal.depth_offset_m) / unit).round();
-        if value >= 1.0 && value <= f64::from(u16::MAX) {
-            raw[i] = value as u16;
-        }
-    }
-    let depth = DepthImage::new(dcam.width, dcam.height, unit, raw)?;
-
-    // Colour camera.
-    let ccam = cal.color_camera;
-    let color_objects = scene_objects(scene, &world_to_color)?;
-    let mut color = RgbImage::new(ccam.width, ccam.height);
-    raycast(
-        &ccam,
-        &color_objects,
-        &(world_to_color * light),
-        scene.sky_rgb,
-        Some(&mut color),
-    );
-    if noise.color_noise_sigma > 0.0 {
-        for c in color.as_mut() {
-            let v = f64::from(*c) + noise.color_noise_sigma * rng.normal();
-            *c = v.round().clamp(0.0, 255.0) as u8;
-        }
-    }
-
-    // Truth.
-    let markers = scene
-        .markers
-        .iter()
-        .map(|m| {
-            let pd = config.world_to_depth * m.center_m;
-            let depth_pixel = dcam.project(&pd);
-            let color_pixel = ccam.project(&(depth_to_color * pd));
-            let visible = depth_pixel
-                .and_then(|px| dcam.pixel_at(&px))
-                .and_then(|(u, v)| truth_z[v as usize * w + u as usize])
-                .is_some_and(|z| (z - pd.z).abs() < 0.01);
-            MarkerTruth {
-                id: m.id.clone(),
-                world_m: m.center_m,
-                depth_camera_m: pd,
-                depth_pixel,
-                color_pixel,
-                visible,
-            }
-        })
-        .collect();
-    Ok(SynthFrame {
-        depth,
-        color,
-        markers,
-    })
+    Renderer::new(config)?.render(scene, config.seed)
 }
 
 /// Bark colour of the demo tree.
@@ -775,6 +985,61 @@ mod tests {
         config.calibration.color_camera =
             config.calibration.color_camera.scaled(0.25).expect("valid");
         config
+    }
+
+    #[test]
+    fn tile_culling_matches_casting_every_object() {
+        // The demo tree's capsules and markers, the ground, and spheres around and behind the
+        // camera (a bound holding the camera must never be culled).
+        let mut scene = demo_tree(4);
+        let config = SynthConfig::kinect_v2(2.2, 1.1, 4);
+        let camera_world = config.world_to_depth.inverse() * Point3::origin();
+        scene.primitives.push(Primitive {
+            shape: Shape::Sphere {
+                center: camera_world + Vector3::new(0.1, 0.0, 0.0),
+                radius_m: 0.3,
+            },
+            rgb: [1, 2, 3],
+        });
+        scene.primitives.push(Primitive {
+            shape: Shape::Sphere {
+                center: Point3::new(-1.2, 0.5, 1.9),
+                radius_m: 0.05,
+            },
+            rgb: [4, 5, 6],
+        });
+        for camera in [
+            config.calibration.depth_camera,
+            config.calibration.color_camera.scaled(0.25).expect("valid"),
+        ] {
+            let grid = RayGrid::new(&camera);
+            let objects = scene_objects(&scene, &config.world_to_depth).expect("valid");
+            let culled = raycast(&grid, &objects, &Vector3::z(), [0, 0, 0], None);
+            let mut hits = 0;
+            for (i, z) in culled.iter().enumerate() {
+                let brute = grid.rays[i]
+                    .and_then(|(d, scale)| cast(&objects, &d).map(|(t, _, _)| t * scale));
+                assert_eq!(*z, brute, "pixel {i}");
+                hits += usize::from(z.is_some());
+            }
+            assert!(hits > 0);
+        }
+    }
+
+    #[test]
+    fn normal_table_has_unit_variance_and_symmetric_tails() {
+        let t = normal_table();
+        assert_eq!(t.len(), NORMAL_TABLE_LEN);
+        let n = t.len() as f64;
+        let mean = t.iter().sum::<f64>() / n;
+        let var = t.iter().map(|x| x * x).sum::<f64>() / n;
+        assert!(mean.abs() < 1e-9, "{mean}");
+        // Bin centres lose a little of the tails: variance just under 1.
+        assert!((var - 1.0).abs() < 2e-3, "{var}");
+        assert!(t.windows(2).all(|w| w[0] < w[1]));
+        assert!((t[0] + t[t.len() - 1]).abs() < 1e-9);
+        // The median bin of the upper half: the quantile at 0.75 is 0.6745.
+        assert!((t[3 * NORMAL_TABLE_LEN / 4] - 0.674_49).abs() < 1e-3);
     }
 
     #[test]
