@@ -268,16 +268,17 @@ fn nalgebra_rotate(v: &Vector3<f64>, axis: &Vector3<f64>, angle: f64) -> Vector3
 }
 
 /// True dynamics of a branch of `order`: level 1 shares the dominant frequency (within
-/// 3 %), higher levels are stiffer for their mass (about 1.3x and 1.8x the dominant
-/// frequency) and more damped (the paper's xi 0.07–0.24, rising with level).
+/// 3 %), higher levels are stiffer for their mass (about 1.25x and 1.5x the dominant
+/// frequency) and more damped (xi 0.06–0.09, 0.08–0.11, 0.10–0.13: inside the paper's
+/// 0.07–0.24, rising with level).
 fn true_dynamics(order: usize, seed: u64, k: u64) -> Dynamics {
     let u = unit(seed, 10_000 + 2 * k);
     let v = unit(seed, 10_001 + 2 * k);
     let (ratio, spread, xi_lo, xi_hi) = match order {
         0 => (1.0, 0.0, 0.05, 0.05),
         1 => (1.0, 0.03, 0.06, 0.09),
-        2 => (1.3, 0.08, 0.08, 0.12),
-        _ => (1.8, 0.1, 0.11, 0.16),
+        2 => (1.25, 0.08, 0.08, 0.11),
+        _ => (1.5, 0.08, 0.10, 0.13),
     };
     Dynamics {
         frequency_hz: SHARED_FREQUENCY_HZ * ratio * (1.0 + spread * (2.0 * u - 1.0)),
@@ -448,13 +449,15 @@ impl Twin {
             frames[place.0].1 + frames[place.0].0 * place.1
         };
         // Marked chains (a limb, one of its level-2 branches, one of that branch's twigs),
-        // chosen as a field crew would: markers well apart.
+        // chosen as a field crew would: markers well apart, swinging across the view.
         let children = |p: usize| -> Vec<usize> {
             (0..branches.len())
                 .filter(|&i| branches[i].parent == Some(p))
                 .collect()
         };
         let root_place = marker_at(0)?;
+        // The camera's viewing direction in the tree frame.
+        let view = synth.world_to_depth.inverse_transform_vector(&Vector3::z());
         let mut candidates: Vec<(f64, [usize; 3])> = Vec::new();
         for l1 in children(0) {
             for l2 in children(l1) {
@@ -466,10 +469,23 @@ impl Twin {
                     }
                     // Shortest parent-to-child marker distance: a short one makes a noisy
                     // angle, and markers side by side confuse trackers.
-                    let score = places
+                    let mut score = places
                         .windows(2)
                         .map(|w| (at(&rest, &w[1]) - at(&rest, &w[0])).norm())
                         .fold(f64::INFINITY, f64::min);
+                    // A swing toward the camera shows only in the depth (the noisiest axis):
+                    // weigh by the share of each marker's swing across the view.
+                    for (k, &b) in chain.iter().enumerate() {
+                        let id = branches[b].id;
+                        probe
+                            .pull(id, PROBE_RAD)
+                            .map_err(|e| format!("twin pull: {e}"))?;
+                        let d =
+                            at(&probe.segment_frames(), &places[k + 1]) - at(&rest, &places[k + 1]);
+                        probe.pull(id, 0.0).map_err(|e| format!("twin pull: {e}"))?;
+                        let across = (d - view * view.dot(&d)).norm() / d.norm().max(1e-12);
+                        score *= across;
+                    }
                     if score.is_finite() {
                         candidates.push((score, chain));
                     }
