@@ -29,7 +29,7 @@ use treemocap::beam_anim::{
     Simulation, write_bvh, write_glb,
 };
 use treemocap::kinect_io::synth::Renderer;
-use treemocap::kinect_io::{Recording, camera_to_world_z_up};
+use treemocap::kinect_io::{ColorFormat, Recording, RecordingWriter, camera_to_world_z_up};
 use treemocap::nalgebra::{Isometry3, Point2, Point3, Vector3};
 use treemocap::space_colonize::synthetic::skeleton_error;
 use treemocap::space_colonize::{ColonizeConfig, reconstruct};
@@ -42,11 +42,14 @@ const USAGE: &str = "usage: pipeline [--out-dir DIR] [--threads N]
                 [--seed N] [--fps HZ] [--distance M] [--marker-radius M]
                 [--noise SCALE] [--chains N] [--window-error PX]
        pipeline --recording DIR --markers markers.json [--out-dir DIR] [--threads N]
+       pipeline --write-recording DIR [twin options]
 
 With no recording: the synthetic twin (a tree with known dynamics, filmed by a simulated
 Kinect V2), measured and compared with the truth. With --recording: a real recording in the
 native or TUM layout (docs/recording-format.md) and the markers of markers.json
-(docs/capture.md). Results go to DIR (default target/treemocap-demo).";
+(docs/capture.md). Results go to DIR (default target/treemocap-demo). --write-recording saves
+the twin's capture as a native recording with its markers.json, to try the --recording path
+on.";
 
 /// Share of the colour camera's resolution the projection image is drawn at when the colour
 /// image is wider than this many pixels (the Kinect V2's 1920 → 960: markers of 3 cm are then
@@ -69,6 +72,7 @@ struct Args {
     twin: TwinConfig,
     recording: Option<PathBuf>,
     markers: Option<PathBuf>,
+    write_recording: Option<PathBuf>,
 }
 
 fn parse_args() -> Result<Option<Args>, String> {
@@ -81,6 +85,7 @@ fn parse_args() -> Result<Option<Args>, String> {
         twin: TwinConfig::default(),
         recording: None,
         markers: None,
+        write_recording: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -96,6 +101,7 @@ fn parse_args() -> Result<Option<Args>, String> {
             "--out-dir" => args.out_dir = value(&a)?.into(),
             "--recording" => args.recording = Some(value(&a)?.into()),
             "--markers" => args.markers = Some(value(&a)?.into()),
+            "--write-recording" => args.write_recording = Some(value(&a)?.into()),
             "--threads" => {
                 let v = value(&a)?;
                 args.threads = v
@@ -173,9 +179,10 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let result = match &args.recording {
-        None => run_twin(&args, started),
-        Some(dir) => run_recording(
+    let result = match (&args.recording, &args.write_recording) {
+        (None, Some(dir)) => write_recording(&args, dir),
+        (None, None) => run_twin(&args, started),
+        (Some(dir), _) => run_recording(
             &args,
             dir,
             args.markers.as_deref().unwrap_or(Path::new("")),
@@ -318,6 +325,68 @@ fn run_twin(args: &Args, started: Instant) -> Result<(), String> {
         &truth,
         median(errors_mm),
     )
+}
+
+/// The twin's capture as a native recording (JPEG colour at quality 95, as the Kinect V2
+/// delivers it; 16-bit depth) and its
+/// `markers.json` (windows on the first colour image, each branch's test window).
+fn write_recording(args: &Args, dir: &Path) -> Result<(), String> {
+    let twin = Twin::build(&args.twin)?;
+    let renderer = Renderer::new(&twin.synth).map_err(|e| format!("renderer: {e}"))?;
+    let windows = twin.windows(&renderer, 1.0)?;
+    let mut writer = RecordingWriter::create(
+        dir,
+        &twin.synth.calibration,
+        ColorFormat::Jpeg { quality: 95 },
+    )
+    .map_err(|e| format!("{}: {e}", dir.display()))?;
+    let mut progress = Progress::new("record");
+    let seed = twin.config.seed;
+    for (i, scene) in twin.scenes.iter().enumerate() {
+        let frame = renderer
+            .render(scene, seed.wrapping_mul(1_000_003).wrapping_add(i as u64))
+            .map_err(|e| format!("frame {i}: render: {e}"))?;
+        writer
+            .write_frame(twin.times_s[i], &frame.color, &frame.depth)
+            .map_err(|e| format!("{}: frame {i}: {e}", dir.display()))?;
+        progress.update(i + 1, twin.scenes.len());
+    }
+    let markers: Vec<serde_json::Value> = twin
+        .markers
+        .iter()
+        .zip(&windows)
+        .map(|(m, w)| {
+            let half = f64::from(w.size_px) / 2.0;
+            let mut v = serde_json::json!({
+                "id": m.id,
+                "parent": m.parent,
+                "x": (w.center.x - half).round(),
+                "y": (w.center.y - half).round(),
+                "w": w.size_px,
+                "h": w.size_px,
+            });
+            if m.level > 0 {
+                v["window_s"] = serde_json::json!([m.window_s.0, m.window_s.1]);
+            }
+            v
+        })
+        .collect();
+    let camera = twin.synth.world_to_depth.inverse() * Point3::origin();
+    let file = serde_json::json!({
+        "camera_height_m": camera.z,
+        "pitch_down_deg": 0.0,
+        "markers": markers,
+    });
+    let text = serde_json::to_string_pretty(&file).map_err(|e| e.to_string())? + "\n";
+    write_atomic(&dir.join("markers.json"), text.as_bytes())?;
+    println!(
+        "wrote     {} ({} frames, native layout) and its markers.json; run it with\n          cargo run --release --example pipeline -- --recording {} --markers {}",
+        dir.display(),
+        twin.scenes.len(),
+        dir.display(),
+        dir.join("markers.json").display()
+    );
+    Ok(())
 }
 
 fn plane_scale(color_width: u32) -> f64 {
