@@ -448,11 +448,14 @@ fn read_markers(path: &Path) -> Result<MarkersFile, String> {
         .map(|m| m.id.as_str())
         .collect();
     if roots.len() != 1 {
+        let found = if roots.is_empty() {
+            "none has".to_string()
+        } else {
+            format!("{} have ({})", roots.len(), roots.join(", "))
+        };
         return Err(format!(
-            "{}: exactly one marker must have \"parent\": null (the trunk's, the root of the hierarchy); found {} ({})",
-            path.display(),
-            roots.len(),
-            roots.join(", ")
+            "{}: exactly one marker must have \"parent\": null (the trunk's, the root of the hierarchy); {found}",
+            path.display()
         ));
     }
     for m in &file.markers {
