@@ -40,6 +40,10 @@ pub struct BranchRow {
     pub paper_damping_ratio: Option<f64>,
     /// The paper method's bin width, hertz.
     pub paper_bin_width_hz: Option<f64>,
+    /// The branch's test window, seconds (when given).
+    pub window_s: Option<(f64, f64)>,
+    /// The stretch our fit used, seconds.
+    pub fit_s: Option<(f64, f64)>,
     /// Why something is missing.
     pub notes: Vec<String>,
 }
@@ -61,6 +65,8 @@ impl BranchRow {
             damping_std: r.ours.and_then(|m| m.damping_std),
             paper_damping_ratio: r.paper.and_then(|p| p.1),
             paper_bin_width_hz: r.paper_bin_hz,
+            window_s: r.window_s,
+            fit_s: r.segment_s,
             notes: r.notes.clone(),
         }
     }
