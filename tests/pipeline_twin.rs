@@ -107,6 +107,7 @@ fn small_twin_recovers_frequency_damping_and_skeleton() {
         &trajectories,
         treemocap::nalgebra::Vector3::z(),
         &windows_s,
+        &chain::tracked_fractions(&capture),
     )
     .expect("analysis");
     assert_eq!(branches.len(), 3);

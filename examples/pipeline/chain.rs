@@ -339,8 +339,11 @@ pub struct BranchResult {
     pub parent: String,
     /// Level (1 for the children of the root).
     pub level: usize,
-    /// Share of frames where the branch's marker has a 3D position.
+    /// Share of frames where the tracker followed the branch's marker (a centre, not lost).
     pub tracked_fraction: f64,
+    /// Share of frames where the marker has a 3D position (lifted, and not dropped as a
+    /// jump).
+    pub lifted_fraction: f64,
     /// Our estimate (largest-amplitude mode of the signed angle's free decay).
     pub ours: Option<Mode>,
     /// The paper's method: FFT peak frequency and eq. (6) damping.
@@ -455,6 +458,19 @@ pub fn trajectories(
     Trajectories::new(capture.times_s.clone(), markers).map_err(|e| format!("trajectories: {e}"))
 }
 
+/// Per marker, the share of frames where the tracker gave a centre.
+pub fn tracked_fractions(capture: &Capture) -> BTreeMap<String, f64> {
+    capture
+        .ids
+        .iter()
+        .zip(&capture.centers)
+        .map(|(id, c)| {
+            let n = c.iter().filter(|c| c.is_some()).count();
+            (id.clone(), n as f64 / capture.times_s.len().max(1) as f64)
+        })
+        .collect()
+}
+
 /// Relative angles and modes of every branch: ours on the signed component that moves most
 /// (free decay, matrix pencil + least squares), the paper's on eq. (1) (FFT peak and
 /// half-power band). A branch with an entry in `windows_s` is measured inside that time
@@ -467,6 +483,7 @@ pub fn analyse(
     trajectories: &Trajectories,
     root_direction: Vector3<f64>,
     windows_s: &BTreeMap<String, (f64, f64)>,
+    tracked: &BTreeMap<String, f64>,
 ) -> Result<Vec<BranchResult>, String> {
     let ours_angles = branch_angles(
         hierarchy,
@@ -491,12 +508,13 @@ pub fn analyse(
     let mut own: BTreeMap<String, f64> = BTreeMap::new();
     for (b, p) in ours_angles.branches.iter().zip(&paper_angles.branches) {
         let track = trajectories.marker(&b.child);
-        let tracked = track.map_or(0, |t| t.positions_m.iter().filter(|p| p.is_some()).count());
+        let lifted = track.map_or(0, |t| t.positions_m.iter().filter(|p| p.is_some()).count());
         let mut result = BranchResult {
             id: b.child.clone(),
             parent: b.parent.clone(),
             level: b.level,
-            tracked_fraction: tracked as f64 / times.len().max(1) as f64,
+            tracked_fraction: tracked.get(&b.child).copied().unwrap_or(0.0),
+            lifted_fraction: lifted as f64 / times.len().max(1) as f64,
             ours: None,
             paper: None,
             paper_bin_hz: None,

@@ -18,8 +18,10 @@ pub struct BranchRow {
     pub parent: String,
     /// Level, 1 for the children of the root.
     pub level: usize,
-    /// Share of frames with a 3D position for the branch's marker.
+    /// Share of frames where the tracker followed the branch's marker.
     pub tracked_fraction: f64,
+    /// Share of frames with a 3D position for the branch's marker.
+    pub lifted_fraction: f64,
     /// True natural frequency (twin only), hertz.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub true_frequency_hz: Option<f64>,
@@ -56,6 +58,7 @@ impl BranchRow {
             parent: r.parent.clone(),
             level: r.level,
             tracked_fraction: r.tracked_fraction,
+            lifted_fraction: r.lifted_fraction,
             true_frequency_hz: truth.map(|t| t.0),
             frequency_hz: r.ours.map(|m| m.frequency_hz),
             frequency_std_hz: r.ours.and_then(|m| m.frequency_std_hz),
