@@ -11,11 +11,9 @@ mod chain;
 #[path = "../examples/pipeline/twin.rs"]
 mod twin;
 
-use std::collections::BTreeMap;
-
-use chain::{CaptureSetup, MarkerSpec, RawFrame};
+use chain::MarkerSpec;
 use treemocap::kinect_io::synth::Renderer;
-use treemocap::nalgebra::{Isometry3, Point3};
+use treemocap::nalgebra::Point3;
 use treemocap::space_colonize::synthetic::skeleton_error;
 use treemocap::space_colonize::{ColonizeConfig, reconstruct};
 use twin::{Twin, TwinConfig};
@@ -35,42 +33,10 @@ fn small_twin_recovers_frequency_damping_and_skeleton() {
     let twin = Twin::build(&small_twin()).expect("twin builds");
     assert_eq!(twin.markers.len(), 4, "trunk and one chain of levels 1-3");
     let renderer = Renderer::new(&twin.synth).expect("renderer");
-    let plane = twin.synth.calibration.color_camera;
-    let windows = twin.windows(&renderer, 1.0).expect("windows");
-    let markers: Vec<MarkerSpec> = twin
-        .markers
-        .iter()
-        .zip(&windows)
-        .map(|(m, w)| MarkerSpec {
-            id: m.id.clone(),
-            parent: m.parent.clone(),
-            center: w.center,
-            size_px: w.size_px,
-        })
-        .collect();
-    let setup = CaptureSetup {
-        calibration: twin.synth.calibration.clone(),
-        plane,
-        cloud_to_plane: twin
-            .synth
-            .calibration
-            .depth_to_color()
-            .expect("rigid")
-            .unwrap_or_else(Isometry3::identity),
-        markers: markers.clone(),
-        static_frames: 5,
-        threads: 2,
-    };
-    let produce = |i: usize| -> Result<RawFrame, String> {
-        let f = renderer
-            .render(&twin.scenes[i], 1000 + i as u64)
-            .map_err(|e| e.to_string())?;
-        Ok(RawFrame {
-            time_s: twin.times_s[i],
-            depth: f.depth,
-            color: f.color,
-        })
-    };
+    let setup = twin
+        .capture_setup(&renderer, 1.0, 5, 2)
+        .expect("capture setup");
+    let produce = |i: usize| twin.frame(&renderer, i);
     let capture =
         chain::capture(&setup, twin.times_s.len(), &produce, &mut |_, _| {}).expect("capture");
     assert_eq!(capture.times_s.len(), twin.times_s.len());
@@ -92,16 +58,12 @@ fn small_twin_recovers_frequency_damping_and_skeleton() {
     assert!(median_mm < 5.0, "median lift error {median_mm} mm");
 
     let mut dropped = Vec::new();
-    let hierarchy = chain::hierarchy(&markers, &capture.ids, &mut dropped).expect("hierarchy");
+    let hierarchy =
+        chain::hierarchy(&setup.markers, &capture.ids, &mut dropped).expect("hierarchy");
     let cloud_to_tree = twin.synth.world_to_depth.inverse();
     let trajectories =
         chain::trajectories(&capture, &hierarchy, &cloud_to_tree).expect("trajectories");
-    let windows_s: BTreeMap<String, (f64, f64)> = twin
-        .markers
-        .iter()
-        .filter(|m| m.level > 0)
-        .map(|m| (m.id.clone(), m.window_s))
-        .collect();
+    let windows_s = twin.windows_s();
     let branches = chain::analyse(
         &hierarchy,
         &trajectories,

@@ -247,58 +247,15 @@ fn run_twin(args: &Args, started: Instant) -> Result<(), String> {
         t.elapsed().as_secs_f64()
     );
     let renderer = Renderer::new(&twin.synth).map_err(|e| format!("renderer: {e}"))?;
-    let color = twin.synth.calibration.color_camera;
-    let plane_scale = plane_scale(color.width);
-    let plane = color
-        .scaled(plane_scale)
-        .map_err(|e| format!("projection plane: {e}"))?;
-    let cloud_to_plane = twin
-        .synth
-        .calibration
-        .depth_to_color()
-        .map_err(|e| format!("calibration: {e}"))?
-        .unwrap_or_else(Isometry3::identity);
-    let windows = twin.windows(&renderer, plane_scale)?;
-    let markers: Vec<MarkerSpec> = twin
-        .markers
-        .iter()
-        .zip(&windows)
-        .map(|(m, w)| MarkerSpec {
-            id: m.id.clone(),
-            parent: m.parent.clone(),
-            center: w.center,
-            size_px: w.size_px,
-        })
-        .collect();
-    let setup = CaptureSetup {
-        calibration: twin.synth.calibration.clone(),
-        plane,
-        cloud_to_plane,
-        markers,
-        static_frames: STATIC_FRAMES,
-        threads: args.threads,
-    };
-    let seed = twin.config.seed;
-    let produce = |i: usize| -> Result<RawFrame, String> {
-        let frame = renderer
-            .render(
-                &twin.scenes[i],
-                seed.wrapping_mul(1_000_003).wrapping_add(i as u64),
-            )
-            .map_err(|e| format!("frame {i}: render: {e}"))?;
-        Ok(RawFrame {
-            time_s: twin.times_s[i],
-            depth: frame.depth,
-            color: frame.color,
-        })
-    };
+    let setup = twin.capture_setup(
+        &renderer,
+        plane_scale(twin.synth.calibration.color_camera.width),
+        STATIC_FRAMES,
+        args.threads,
+    )?;
+    let produce = |i: usize| twin.frame(&renderer, i);
     let tree_to_depth = twin.synth.world_to_depth;
-    let windows_s: BTreeMap<String, (f64, f64)> = twin
-        .markers
-        .iter()
-        .filter(|m| m.level > 0)
-        .map(|m| (m.id.clone(), m.window_s))
-        .collect();
+    let windows_s = twin.windows_s();
     let measured = measure(
         &setup,
         twin.times_s.len(),
@@ -373,13 +330,10 @@ fn write_recording(args: &Args, dir: &Path) -> Result<(), String> {
     )
     .map_err(|e| format!("{}: {e}", dir.display()))?;
     let mut progress = Progress::new("record");
-    let seed = twin.config.seed;
-    for (i, scene) in twin.scenes.iter().enumerate() {
-        let frame = renderer
-            .render(scene, seed.wrapping_mul(1_000_003).wrapping_add(i as u64))
-            .map_err(|e| format!("frame {i}: render: {e}"))?;
+    for i in 0..twin.scenes.len() {
+        let frame = twin.frame(&renderer, i)?;
         writer
-            .write_frame(twin.times_s[i], &frame.color, &frame.depth)
+            .write_frame(frame.time_s, &frame.color, &frame.depth)
             .map_err(|e| format!("{}: frame {i}: {e}", dir.display()))?;
         progress.update(i + 1, twin.scenes.len());
     }

@@ -5,6 +5,7 @@
 //!
 //! Shared by `examples/pipeline` and the cross-crate test `tests/pipeline_twin.rs`.
 
+use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
 use treemocap::beam_anim::{
@@ -13,8 +14,10 @@ use treemocap::beam_anim::{
 use treemocap::kinect_io::synth::{
     MARKER_RGB, Marker, Primitive, Renderer, Scene, SensorNoise, Shape, SynthConfig,
 };
-use treemocap::nalgebra::{Point2, Point3, UnitQuaternion, Vector3};
+use treemocap::nalgebra::{Isometry3, Point2, Point3, UnitQuaternion, Vector3};
 use treemocap::space_colonize::{Skeleton, SkeletonNode};
+
+use crate::chain::{CaptureSetup, MarkerSpec, RawFrame};
 
 /// The paper's dominant frequency (Table 1: more than 85 % of the branches at 1.46 Hz).
 pub const SHARED_FREQUENCY_HZ: f64 = 1.46;
@@ -679,6 +682,84 @@ impl Twin {
             });
         }
         Ok(out)
+    }
+}
+
+impl Twin {
+    /// How the capture is tracked: the projection image on the colour camera's plane scaled
+    /// by `plane_scale`, the markers with the user's first-frame windows.
+    ///
+    /// # Errors
+    /// A message when the plane cannot be scaled or a marker is not on the first frame.
+    pub fn capture_setup(
+        &self,
+        renderer: &Renderer,
+        plane_scale: f64,
+        static_frames: usize,
+        threads: usize,
+    ) -> Result<CaptureSetup, String> {
+        let calibration = &self.synth.calibration;
+        let plane = calibration
+            .color_camera
+            .scaled(plane_scale)
+            .map_err(|e| format!("projection plane: {e}"))?;
+        let cloud_to_plane = calibration
+            .depth_to_color()
+            .map_err(|e| format!("calibration: {e}"))?
+            .unwrap_or_else(Isometry3::identity);
+        let windows = self.windows(renderer, plane_scale)?;
+        let markers = self
+            .markers
+            .iter()
+            .zip(&windows)
+            .map(|(m, w)| MarkerSpec {
+                id: m.id.clone(),
+                parent: m.parent.clone(),
+                center: w.center,
+                size_px: w.size_px,
+            })
+            .collect();
+        Ok(CaptureSetup {
+            calibration: calibration.clone(),
+            plane,
+            cloud_to_plane,
+            markers,
+            static_frames,
+            threads,
+        })
+    }
+
+    /// Frame `i` of the capture, with the sensor noise of its own seed.
+    ///
+    /// # Errors
+    /// A message naming the frame when it cannot be rendered.
+    pub fn frame(&self, renderer: &Renderer, i: usize) -> Result<RawFrame, String> {
+        let scene = self
+            .scenes
+            .get(i)
+            .ok_or_else(|| format!("frame {i}: the twin has {} frames", self.scenes.len()))?;
+        let seed = self
+            .config
+            .seed
+            .wrapping_mul(1_000_003)
+            .wrapping_add(i as u64);
+        let frame = renderer
+            .render(scene, seed)
+            .map_err(|e| format!("frame {i}: render: {e}"))?;
+        Ok(RawFrame {
+            time_s: self.times_s[i],
+            depth: frame.depth,
+            color: frame.color,
+        })
+    }
+
+    /// Each marked branch's test window, seconds.
+    pub fn windows_s(&self) -> BTreeMap<String, (f64, f64)> {
+        self.markers
+            .iter()
+            .filter(|m| m.level > 0)
+            .map(|m| (m.id.clone(), m.window_s))
+            .collect()
     }
 }
 
