@@ -903,6 +903,10 @@ fn finish(
         "wrote     {} (report.md, report.json, figures/, tree.glb, tree.bvh, skeleton.json, projection.png)",
         out.display()
     );
+    println!(
+        "timing    capture {capture_s:.1} s (frames and clouds {:.1} s of CPU on {} threads, tracking and lifting {:.1} s), reconstruction {recon_s:.2} s, animation and export {anim_s:.2} s",
+        capture.produce_s, args.threads, capture.track_s
+    );
     println!("seconds   {seconds:.1}");
     Ok(())
 }
