@@ -32,7 +32,7 @@ use treemocap::kinect_io::synth::Renderer;
 use treemocap::kinect_io::{ColorFormat, Recording, RecordingWriter, camera_to_world_z_up};
 use treemocap::nalgebra::{Isometry3, Point2, Point3, Vector3};
 use treemocap::space_colonize::synthetic::skeleton_error;
-use treemocap::space_colonize::{ColonizeConfig, reconstruct};
+use treemocap::space_colonize::{ColonizeConfig, cylinders, reconstruct};
 
 use chain::{BranchResult, Capture, CaptureSetup, MarkerSpec, RawFrame};
 use report::{BranchRow, write_atomic};
@@ -789,12 +789,13 @@ fn finish(
         capture.times_s.len(),
         median_lift_error_mm.map_or(String::new(), |e| format!(", median lift error {e:.2} mm"))
     );
+    // Wood length as TreeQSM counts it: each branch from its parent's surface.
+    let wood_m: f64 = cylinders(&recon.skeleton).iter().map(|c| c.length_m).sum();
     println!(
-        "rebuild   {} points -> {} nodes, {} branches, {:.2} m of wood{} ({recon_s:.2} s)",
+        "rebuild   {} points -> {} nodes, {} branches, {wood_m:.2} m of wood{} ({recon_s:.2} s)",
         points.len(),
         recon.skeleton.nodes().len(),
         recon.branches.len(),
-        recon.skeleton.total_length_m(),
         error.map_or(String::new(), |e| format!(
             ", mean skeleton error {:.1} mm (p95 {:.1} mm), {:.0} % of the true length found",
             e.mean_skeleton_error_m * 1e3,
@@ -852,7 +853,7 @@ fn finish(
             points: points.len(),
             nodes: recon.skeleton.nodes().len(),
             branches: recon.branches.len(),
-            total_length_m: recon.skeleton.total_length_m(),
+            total_length_m: wood_m,
             mean_skeleton_error_m: error.map(|e| e.mean_skeleton_error_m),
             p95_skeleton_error_m: error.map(|e| e.p95_skeleton_error_m),
             truth_length_found: error.map(|e| e.truth_length_found),

@@ -33,9 +33,14 @@ pub struct Cylinder {
     pub order: usize,
 }
 
-/// The cylinders of a skeleton: one per node with a parent, zero-length segments skipped.
+/// The cylinders of a skeleton: one per node with a parent. As in TreeQSM's tables, a
+/// branch starts on its parent's surface: the part of its first segments inside the parent
+/// ([`Skeleton::inside_parent_m`]) is left out, and segments wholly inside or of zero
+/// length are skipped. Their lengths sum to the tree's wood length, their volumes to its
+/// wood volume.
 pub fn cylinders(skeleton: &Skeleton) -> Vec<Cylinder> {
     let nodes = skeleton.nodes();
+    let inside = skeleton.inside_parent_m();
     let mut branch_of = vec![(0usize, 0usize); nodes.len()];
     for b in skeleton.branches() {
         for &v in &b.nodes {
@@ -47,17 +52,19 @@ pub fn cylinders(skeleton: &Skeleton) -> Vec<Cylinder> {
     for &v in skeleton.topological_order() {
         let Some(p) = nodes[v].parent else { continue };
         let d = nodes[v].position - nodes[p].position;
-        let length_m = d.norm();
-        if length_m <= 0.0 {
+        let full_m = d.norm();
+        let length_m = full_m - inside[v];
+        if full_m <= 0.0 || length_m <= 1e-12 {
             cyl_of[v] = cyl_of[p];
             continue;
         }
+        let axis = d / full_m;
         let id = out.len();
         out.push(Cylinder {
             id,
             parent: cyl_of[p],
-            start: nodes[p].position,
-            axis: d / length_m,
+            start: nodes[p].position + axis * inside[v],
+            axis,
             length_m,
             radius_m: nodes[v].radius_m,
             branch: branch_of[v].0,

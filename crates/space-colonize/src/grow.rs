@@ -20,6 +20,12 @@ const NONE: u32 = u32::MAX;
 const DUPLICATE_STEPS: f64 = 0.3;
 /// Mean unit attraction below this is a tie between opposite sides.
 const TIE: f64 = 0.05;
+/// A step that takes a node this many steps farther from the cloud leaves it (see
+/// [`leaves_cloud`]). On the leaf-off coffee tree 0.2 keeps 99.8 % of the model within
+/// 2 cm of the cloud, against 97.6 % without the rule; 0.1 bends thick branches toward
+/// their near surface (the fitted radii then grow, +30 % volume), 0.5 lets half the
+/// corner cuts through.
+const AIR_STEPS: f64 = 0.2;
 
 /// The raw grown graph. Parents always come before their children.
 #[derive(Debug, Clone)]
@@ -114,6 +120,17 @@ fn along(p: &[f64; 3], dir: &[f64; 3], s: f64) -> [f64; 3] {
     [p[0] + s * dir[0], p[1] + s * dir[1], p[2] + s * dir[2]]
 }
 
+/// Whether a step from `base` to `c` leaves the cloud: `c` is more than a point spacing
+/// from every point and [`AIR_STEPS`] steps farther from the cloud than `base`. The mean
+/// attraction of a node between two diverging twigs, or between two neighbouring branches,
+/// points into the air between them; such a node steps toward its nearest attractor
+/// instead, and the other twig is reached by a fork.
+fn leaves_cloud(prep: &Prepared, base: &[f64; 3], c: &[f64; 3], step: f64) -> bool {
+    let d = |q: &[f64; 3]| prep.tree.nearest_one::<SquaredEuclidean>(q).distance.sqrt();
+    let to_c = d(c);
+    to_c > prep.params.spacing_m && to_c > d(base) + AIR_STEPS * step
+}
+
 /// Grow the skeleton graph from the root or from the seed nodes.
 pub(crate) fn grow(prep: &Prepared, pass: Pass<'_>) -> Result<Growth> {
     let p = &prep.params;
@@ -190,7 +207,7 @@ pub(crate) fn grow(prep: &Prepared, pass: Pass<'_>) -> Result<Growth> {
             let mut cand = None;
             if len > TIE * f64::from(count[node]) {
                 let c = along(&base, &[s[0] / len, s[1] / len, s[2] / len], step);
-                if !st.is_duplicate(&c, step) {
+                if !leaves_cloud(prep, &base, &c, step) && !st.is_duplicate(&c, step) {
                     cand = Some(c);
                 }
             }

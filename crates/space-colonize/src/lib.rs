@@ -65,9 +65,9 @@ pub use config::{
 };
 pub use error::{ColonizeError, Result};
 pub use reconstruct::{
-    GrowthReport, Reconstruction, Stage, reconstruct, reconstruct_with_progress,
+    FAR_TIP_SPACINGS, GrowthReport, Reconstruction, Stage, reconstruct, reconstruct_with_progress,
 };
-pub use skeleton::{Branch, Skeleton, SkeletonNode};
+pub use skeleton::{Branch, MAX_INSIDE_RADII, Skeleton, SkeletonNode};
 
 pub use geometry::{
     Cylinder, DEFAULT_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv, tube_mesh,

@@ -34,14 +34,18 @@ pub struct Metrics {
     pub within_2cm: f64,
     /// Share within 5 cm.
     pub within_5cm: f64,
-    /// Share of the model's length whose surface is within [`NEAR_CLOUD_M`] of a point.
+    /// Share of the skeleton's length whose surface is within [`NEAR_CLOUD_M`] of a point.
     pub length_near_cloud: f64,
     /// Largest distance from a model part (a segment's mid-axis, less its radius) to the
     /// nearest point, metres.
     pub max_model_gap_m: f64,
-    /// Sum of segment lengths, metres.
+    /// Wood length, metres: the cylinders of [`crate::cylinders`], each branch from its
+    /// parent's surface as TreeQSM counts it.
     pub total_length_m: f64,
-    /// Volume of the cylinders, litres (the unit tree-modelling tools report).
+    /// Sum of the skeleton's segment lengths, metres: [`Self::total_length_m`] plus the
+    /// stretches of branches inside their parents, from the fork node to the surface.
+    pub skeleton_length_m: f64,
+    /// Wood volume of the same cylinders, litres (the unit tree-modelling tools report).
     pub volume_l: f64,
 }
 
@@ -131,10 +135,12 @@ fn distances(points: impl Iterator<Item = Vector3<f64>>, cyls: &[Cyl]) -> Vec<f6
 /// Measure a skeleton's cylinders against the points.
 pub fn metrics(points: &[Point3<f64>], skeleton: &Skeleton) -> Metrics {
     let cyls = cylinders(skeleton);
-    let total_length_m: f64 = cyls.iter().map(|c| c.len).sum();
-    let volume_l = cyls
+    let skeleton_length_m: f64 = cyls.iter().map(|c| c.len).sum();
+    let wood = crate::geometry::cylinders(skeleton);
+    let total_length_m: f64 = wood.iter().map(|c| c.length_m).sum();
+    let volume_l = wood
         .iter()
-        .map(|c| std::f64::consts::PI * c.r * c.r * c.len)
+        .map(|c| std::f64::consts::PI * c.radius_m * c.radius_m * c.length_m)
         .sum::<f64>()
         * 1000.0;
     let mids = midpoints(&cyls);
@@ -177,13 +183,14 @@ pub fn metrics(points: &[Point3<f64>], skeleton: &Skeleton) -> Metrics {
         within_1cm: w1,
         within_2cm: w2,
         within_5cm: w5,
-        length_near_cloud: if total_length_m > 0.0 {
-            length_near / total_length_m
+        length_near_cloud: if skeleton_length_m > 0.0 {
+            length_near / skeleton_length_m
         } else {
             0.0
         },
         max_model_gap_m: max_gap,
         total_length_m,
+        skeleton_length_m,
         volume_l,
     }
 }

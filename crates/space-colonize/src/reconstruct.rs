@@ -3,12 +3,13 @@
 use nalgebra::{Point3, Vector3};
 use serde::Serialize;
 
+use crate::cloud::Prepared;
 use crate::cloud::prepare;
 use crate::config::{ColonizeConfig, Parameters};
 use crate::error::{ColonizeError, Result};
 use crate::grow::{Pass, grow};
 use crate::metrics::NEAR_CLOUD_M;
-use crate::refine::{Graph, twig_stubs, unneeded_stubs};
+use crate::refine::{Graph, far_tails, twig_stubs, unneeded_stubs};
 use crate::skeleton::{Branch, Skeleton};
 
 /// Laplacian passes on the grown nodes before centring.
@@ -18,6 +19,15 @@ const PRE_CENTRING_PASSES: usize = 3;
 /// metres: closer ones are the first model's radius and centring error, not missing twigs
 /// (the 2 cm fidelity bound).
 const TWIG_PASS_MIN_DISTANCE_M: f64 = NEAR_CLOUD_M;
+
+/// Rounds of cutting twigs that end in the air (the radii change after a cut, so a second
+/// round can find more; on the leaf-off coffee tree the first finds all).
+const FAR_TIP_ROUNDS: usize = 2;
+
+/// A twig end counts as in the air beyond this many point spacings from every point, when
+/// that is more than [`NEAR_CLOUD_M`] (sparse clouds: mid-segments are that far from the
+/// nearest point along their own twig).
+pub const FAR_TIP_SPACINGS: f64 = 2.0;
 
 /// Stages reported to a progress callback, in order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -52,6 +62,10 @@ pub struct GrowthReport {
     pub abandoned_points: usize,
     /// Terminal stubs removed.
     pub pruned_twigs: usize,
+    /// Twig ends cut because they ran more than [`NEAR_CLOUD_M`] (or
+    /// [`FAR_TIP_SPACINGS`] point spacings, if more) from every point and no point needed
+    /// them.
+    pub far_tips: usize,
     /// Whether the fitted radii were used (see [`ColonizeConfig::radius_fits`]); false when
     /// not asked for or when they disagree with the pipe model by more than a factor of 2
     /// at the median (leaf clumps, not wood).
@@ -180,27 +194,15 @@ pub fn reconstruct_with_progress(
             twig_growth = Some(g2);
         }
     }
+    let radii_of = |graph: &Graph| radii(graph).map(|(s, _)| s);
     let mut pruned = 0;
     for _ in 0..2 {
         let stubs = twig_stubs(&skeleton, p.min_twig_m);
-        if stubs.is_empty() {
-            break;
-        }
-        let mut keep = vec![true; graph.pos.len()];
-        stubs.iter().flatten().for_each(|&v| keep[v] = false);
-        let mut trial = graph.clone();
-        trial.retain(&keep);
-        let d = crate::metrics::point_distances(&prep.pts, &radii(&trial)?.0);
-        let remove = unneeded_stubs(&prep.pts, &prep.main, &skeleton, &stubs, &d, NEAR_CLOUD_M);
-        let removed = remove.iter().filter(|&&r| r).count();
+        let removed = remove_unneeded(&mut graph, &skeleton, &stubs, &prep, &radii_of)?;
         if removed == 0 {
             break;
         }
-        for (stub, _) in stubs.iter().zip(&remove).filter(|(_, r)| !**r) {
-            stub.iter().for_each(|&v| keep[v] = true);
-        }
         pruned += removed;
-        graph.retain(&keep);
         (skeleton, fits_used) = radii(&graph)?;
     }
     if config.centring {
@@ -209,6 +211,17 @@ pub fn reconstruct_with_progress(
         let r: Vec<f64> = skeleton.nodes().iter().map(|n| n.radius_m).collect();
         graph.centre_on_radius(&prep.pts, &prep.main, &r);
         graph.smooth_from(config.smoothing_iterations, 0, true);
+        (skeleton, fits_used) = radii(&graph)?;
+    }
+    let mut far_tips = 0;
+    let near_m = NEAR_CLOUD_M.max(FAR_TIP_SPACINGS * p.spacing_m);
+    for _ in 0..FAR_TIP_ROUNDS {
+        let tails = far_tails(&skeleton, &prep.tree, near_m);
+        let removed = remove_unneeded(&mut graph, &skeleton, &tails, &prep, &radii_of)?;
+        if removed == 0 {
+            break;
+        }
+        far_tips += removed;
         (skeleton, fits_used) = radii(&graph)?;
     }
     let branches = skeleton.branches();
@@ -224,10 +237,48 @@ pub fn reconstruct_with_progress(
             unreached_points: g.unreached,
             abandoned_points: g.abandoned,
             pruned_twigs: pruned,
+            far_tips,
             radius_fits_used: fits_used,
         },
         skeleton,
         branches,
         parameters: p,
     })
+}
+
+/// Remove the `candidates` (lists of nodes, each with its subtree) that no point needs
+/// ([`unneeded_stubs`]): a point more than [`NEAR_CLOUD_M`] from the model without them
+/// that is nearer to one of a candidate's nodes keeps that candidate. Returns how many
+/// went.
+fn remove_unneeded(
+    graph: &mut Graph,
+    skeleton: &Skeleton,
+    candidates: &[Vec<usize>],
+    prep: &Prepared,
+    radii: &dyn Fn(&Graph) -> Result<Skeleton>,
+) -> Result<usize> {
+    if candidates.is_empty() {
+        return Ok(0);
+    }
+    let mut keep = vec![true; graph.pos.len()];
+    candidates.iter().flatten().for_each(|&v| keep[v] = false);
+    let mut trial = graph.clone();
+    trial.retain(&keep);
+    let d = crate::metrics::point_distances(&prep.pts, &radii(&trial)?);
+    let remove = unneeded_stubs(
+        &prep.pts,
+        &prep.main,
+        skeleton,
+        candidates,
+        &d,
+        NEAR_CLOUD_M,
+    );
+    for (c, _) in candidates.iter().zip(&remove).filter(|(_, r)| !**r) {
+        c.iter().for_each(|&v| keep[v] = true);
+    }
+    let removed = remove.iter().filter(|&&r| r).count();
+    if removed > 0 {
+        graph.retain(&keep);
+    }
+    Ok(removed)
 }

@@ -6,6 +6,7 @@ use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use nalgebra::{Point3, Vector3};
 
 use crate::circle::{centre_with_radius, fit_circle};
+use crate::cloud::PointTree;
 use crate::config::Parameters;
 use crate::error::Result;
 use crate::skeleton::{Skeleton, SkeletonNode};
@@ -18,8 +19,10 @@ const MIN_FIT_COVERAGE: f64 = 0.25;
 const MAX_FIT_RMS_PER_RADIUS: f64 = 0.35;
 /// A fitted radius is trusted as a measurement with at least this many points,
 const RELIABLE_FIT_POINTS: usize = 6;
-/// ... covering at least this share of the circle (a one-sided view gives up to a half),
-const RELIABLE_FIT_COVERAGE: f64 = 0.25;
+/// ... covering at least this share of the circle (a one-sided view gives up to a half;
+/// arcs of a quarter of the circle are where fits to points of two branches passed, with
+/// radii up to 2.5 times the parent's on the leaf-off coffee tree),
+const RELIABLE_FIT_COVERAGE: f64 = 0.4;
 /// ... an RMS residual below this share of the radius,
 const RELIABLE_FIT_RMS_PER_RADIUS: f64 = 0.35;
 /// ... and a radius of at least this many point spacings (thinner ones are noise-bound).
@@ -518,6 +521,45 @@ pub(crate) fn twig_stubs(skeleton: &Skeleton, min_twig_m: f64) -> Vec<Vec<usize>
         .collect()
 }
 
+/// Twig ends in the air: in each terminal chain (the nodes beyond the last fork), the
+/// first segment whose surface is more than `near_m` from every point of `tree`, measured
+/// from its mid-axis, and the nodes beyond it. Twigs extended or grown past the end of
+/// their points, or across a hollow trunk base, end so; a bridge across an occlusion to
+/// a leaf clump does too, which is why these are only candidates for removal.
+pub(crate) fn far_tails(skeleton: &Skeleton, tree: &PointTree, near_m: f64) -> Vec<Vec<usize>> {
+    let nodes = skeleton.nodes();
+    let mut fork_below = vec![false; nodes.len()];
+    for &v in skeleton.topological_order().iter().rev() {
+        let kids = skeleton.children(v);
+        fork_below[v] = kids.len() > 1 || kids.iter().any(|&c| fork_below[c]);
+    }
+    let mut tails = Vec::new();
+    let mut in_tail = vec![false; nodes.len()];
+    for &v in skeleton.topological_order() {
+        let Some(p) = nodes[v].parent else { continue };
+        // Only the first far segment of a chain starts a tail; later ones are in it.
+        if fork_below[v] || in_tail[v] {
+            continue;
+        }
+        let mid = (nodes[p].position.coords + nodes[v].position.coords) * 0.5;
+        let d = tree
+            .nearest_one::<SquaredEuclidean>(&[mid.x, mid.y, mid.z])
+            .distance
+            .sqrt();
+        if d - nodes[v].radius_m > near_m {
+            let mut tail = vec![v];
+            let mut u = v;
+            while let [c] = skeleton.children(u) {
+                tail.push(*c);
+                u = *c;
+            }
+            tail.iter().for_each(|&t| in_tail[t] = true);
+            tails.push(tail);
+        }
+    }
+    tails
+}
+
 /// Which `stubs` are artefacts: those no point needs. A stub is needed when a point that is
 /// farther than `near_m` from the model without the stubs (`pruned_distance`, per point) is
 /// nearer to one of the stub's nodes than to that model: a short twig into a leaf clump of
@@ -589,6 +631,28 @@ mod tests {
         let (far, used) = g.to_skeleton(2.5, 0.05, Some(&scaled(5.0))).unwrap();
         assert!(!used);
         assert_eq!(far, pipe);
+    }
+
+    #[test]
+    fn twig_ends_in_the_air_are_found_from_their_first_far_segment() {
+        // Trunk nodes every 10 cm up z with a side twig at 50 cm: 3 cm, 6 cm, then 10 cm
+        // and 14 cm out along +x. Points lie along the trunk and the twig's first 6 cm.
+        let mut g = trunk_with_stub();
+        g.pos.push(Vector3::new(0.10, 0.0, 0.5));
+        g.parent.push(Some(12));
+        g.pos.push(Vector3::new(0.14, 0.0, 0.5));
+        g.parent.push(Some(13));
+        let (sk, _) = g.to_skeleton(2.5, 0.02, None).unwrap();
+        let mut pts: Vec<[f64; 3]> = (0..=100).map(|k| [0.0, 0.0, 0.01 * f64::from(k)]).collect();
+        pts.extend((0..=6).map(|k| [0.01 * f64::from(k), 0.0, 0.5]));
+        let tree: PointTree = PointTree::new_from_slice(&pts);
+        // The segment 6 -> 10 cm has its middle 2 cm beyond the last point, its surface
+        // 1.3 cm (pipe radius 7 mm): with 2.5 cm allowed only the last segment is in
+        // the air, with 1 cm both are, from the first far one to the tip.
+        assert_eq!(far_tails(&sk, &tree, 0.025), vec![vec![14]]);
+        assert_eq!(far_tails(&sk, &tree, 0.01), vec![vec![13, 14]]);
+        // The trunk's top is no tail: its points reach it.
+        assert!(far_tails(&sk, &tree, 0.005).iter().all(|t| t[0] > 10));
     }
 
     #[test]

@@ -41,6 +41,10 @@ pub struct Branch {
     pub length_m: f64,
 }
 
+/// Most of a branch counted as inside its parent, in parent radii (a branch leaving at 15°
+/// crosses its parent's surface 3.9 radii from the fork).
+pub const MAX_INSIDE_RADII: f64 = 4.0;
+
 /// A validated tree of nodes: one root, every other node's parent exists, no cycles.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Skeleton {
@@ -197,6 +201,72 @@ impl Skeleton {
             .iter()
             .map(|x| std::f64::consts::PI * x.radius_m.powi(2) * self.segment_length_m(x.id))
             .sum()
+    }
+
+    /// Length of each node's segment that lies inside the branch its branch grows from,
+    /// metres: a branch's first segments start at the fork node on its parent's axis, and
+    /// run inside the parent until they cross its surface, a cylinder of the fork node's
+    /// radius about the parent's axis there (through the fork's parent and the next node of
+    /// the parent branch). That part is the parent's wood. TreeQSM starts a branch's first
+    /// cylinder on its parent's surface, so lengths and volumes compare only without it
+    /// ([`crate::cylinders`] leaves it out). At most [`MAX_INSIDE_RADII`] parent radii of a
+    /// branch count (a child nearly parallel to its parent).
+    pub fn inside_parent_m(&self) -> Vec<f64> {
+        let mut inside = vec![0.0; self.nodes.len()];
+        let pos = |i: usize| self.nodes[i].position.coords;
+        let branches = self.branches();
+        let mut branch_of = vec![0; self.nodes.len()];
+        for (k, b) in branches.iter().enumerate() {
+            b.nodes.iter().for_each(|&v| branch_of[v] = k);
+        }
+        for b in &branches {
+            let Some(f) = b.base_node else { continue };
+            let r = self.nodes[f].radius_m;
+            // The parent branch's node after the fork.
+            let next = self.children[f]
+                .iter()
+                .copied()
+                .find(|&c| branch_of[c] == branch_of[f]);
+            let axis = match (self.nodes[f].parent, next) {
+                (Some(p), Some(n)) => pos(n) - pos(p),
+                (Some(p), None) => pos(f) - pos(p),
+                (None, Some(n)) => pos(n) - pos(f),
+                (None, None) => continue,
+            };
+            let Some(axis) = axis.try_normalize(1e-12) else {
+                continue;
+            };
+            let perp = |v: nalgebra::Vector3<f64>| v - axis * v.dot(&axis);
+            let (mut prev, mut total) = (pos(f), 0.0);
+            for &v in &b.nodes {
+                let seg = pos(v) - prev;
+                let len = seg.norm();
+                let (w0, w1) = (perp(prev - pos(f)), perp(seg));
+                let (qa, qb, qc) = (
+                    w1.norm_squared(),
+                    2.0 * w0.dot(&w1),
+                    w0.norm_squared() - r * r,
+                );
+                if qc >= 0.0 {
+                    break;
+                }
+                // Share of the segment before it crosses the surface (all of it when it runs
+                // parallel to the axis).
+                let t = if qa > 0.0 {
+                    ((-qb + (qb * qb - 4.0 * qa * qc).sqrt()) / (2.0 * qa)).min(1.0)
+                } else {
+                    1.0
+                };
+                let part = (t * len).min(MAX_INSIDE_RADII * r - total).max(0.0);
+                inside[v] = part;
+                total += part;
+                if t < 1.0 || total >= MAX_INSIDE_RADII * r {
+                    break;
+                }
+                prev = pos(v);
+            }
+        }
+        inside
     }
 
     /// Length of tree carried by each segment: its own length plus everything beyond it,

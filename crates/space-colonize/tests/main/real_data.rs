@@ -35,10 +35,16 @@ fn coffee_tree_is_close_to_its_cloud() {
     let m = metrics(&pts, &model.skeleton);
     println!("{m:?}");
     // Figures in docs/validation.md; bounds a little looser than measured.
-    assert!(m.mean_distance_m < 0.0032, "{m:?}");
+    assert!(m.mean_distance_m < 0.0031, "{m:?}");
     assert!(model.growth.radius_fits_used);
     assert!(m.within_2cm > 0.99, "{m:?}");
-    assert!((m.total_length_m / 32.8 - 1.0).abs() < 0.15, "{m:?}");
+    // The goals against TreeQSM's published model of this cloud: length and
+    // volume within 10 %, every model part within 2 cm of the cloud (all but one twig
+    // that a point needs, 0.2 mm over).
+    assert!((m.total_length_m / 32.8 - 1.0).abs() < 0.1, "{m:?}");
+    assert!((m.volume_l / 21.6 - 1.0).abs() < 0.1, "{m:?}");
+    assert!(m.length_near_cloud > 0.999, "{m:?}");
+    assert!(m.max_model_gap_m < 0.021, "{m:?}");
 }
 
 #[test]
