@@ -13,8 +13,10 @@
 //!   2. space colonization with k-d trees (kiddo): kill distance ≈ 1.2 trunk radii, step
 //!      1.5 spacings, influence 2.75 kill distances; only points near new nodes are
 //!      revisited, so growth costs O(n log n); gaps (occlusions, one-sided views) are
-//!      crossed by the shortest straight bridge, never by growth toward nothing; an
-//!      iteration and a node bound end it with an error if ever hit;
+//!      crossed by the shortest straight bridge, never by growth toward nothing; a step
+//!      that would leave the cloud (the mean attraction between two diverging twigs) goes
+//!      toward the nearest attractor instead; an iteration and a node bound end it with
+//!      an error if ever hit;
 //!   3. tips extended to the last points they reached, nodes moved onto the branch axis
 //!      (circle fits across the branch; centroids where a branch is too thin), smoothed;
 //!   4. a second, fine pass grows the twigs shorter than the first kill distance toward the
@@ -22,11 +24,13 @@
 //!   5. radii: the pipe model r_parent^e = Σ r_child^e (e = 2.5) anchored at the fitted trunk
 //!      base and, by default, at every radius a circle fit measures along a branch (a
 //!      straight taper fitted per chain); stubs that do not reach beyond their parent's
-//!      surface are removed.
+//!      surface, and twig ends more than 2 cm from every point, are removed unless a
+//!      point needs them.
 //! - [`Skeleton`]: nodes with parents and radii, [`Branch`]es (chains continuing through each
 //!   fork along the child carrying the most tree), orders, lengths, JSON files.
 //! - [`metrics`]: point-to-surface distances (mean, median, p95, shares within 1/2/5 cm),
-//!   the share of model length near the cloud, length, volume.
+//!   the share of model length near the cloud, length and volume of the wood (each branch
+//!   from its parent's surface, as TreeQSM counts it: [`Skeleton::inside_parent_m`]).
 //! - [`cylinders`] (TreeQSM-style table, [`cylinders_to_csv`]) and [`tube_mesh`] (OBJ, PLY).
 //! - [`synthetic`] trees with a known skeleton, and [`synthetic::skeleton_error`].
 //!
