@@ -39,6 +39,8 @@ pub(crate) struct Growth {
     pub unreached: usize,
     /// Points given up because their node could not move toward them.
     pub abandoned: usize,
+    /// Per node: true for the nodes of straight bridges across gaps.
+    pub bridge: Vec<bool>,
 }
 
 /// What one growth pass runs with.
@@ -162,6 +164,7 @@ pub(crate) fn grow(prep: &Prepared, pass: Pass<'_>) -> Result<Growth> {
     let mut abandon: Vec<bool> = Vec::new();
     let (mut iterations, mut bridges, mut bridged_m, mut abandoned) = (0usize, 0usize, 0.0, 0);
     let mut unreached = 0;
+    let mut bridge: Vec<bool> = Vec::new();
     loop {
         iterations += 1;
         if iterations > p.max_iterations {
@@ -281,12 +284,16 @@ pub(crate) fn grow(prep: &Prepared, pass: Pass<'_>) -> Result<Growth> {
             s += step;
             st.add_node(along(&start, &dir, s), Some(parent))?;
             parent = st.nodes.len() - 1;
+            bridge.resize(st.nodes.len(), false);
+            bridge[parent] = true;
             bridged_m += step;
         }
         // The target is within the kill distance of the last bridge node (or of `from`).
         st.alive[target] = false;
     }
+    bridge.resize(st.nodes.len(), false);
     Ok(Growth {
+        bridge,
         positions: st.nodes,
         parents: st.parents,
         iterations,

@@ -64,7 +64,7 @@ pub struct GrowthReport {
     pub pruned_twigs: usize,
     /// Twig ends cut because they ran more than [`NEAR_CLOUD_M`] (or
     /// [`FAR_TIP_SPACINGS`] point spacings, if more) from every point and no point needed
-    /// them.
+    /// them. Those points need, other than bridges, are moved onto their points.
     pub far_tips: usize,
     /// Whether the fitted radii were used (see [`ColonizeConfig::radius_fits`]); false when
     /// not asked for or when they disagree with the pipe model by more than a factor of 2
@@ -142,6 +142,7 @@ pub fn reconstruct_with_progress(
     let mut graph = Graph {
         pos: g.positions.iter().map(|x| Vector3::from(*x)).collect(),
         parent: g.parents.clone(),
+        bridge: g.bridge.clone(),
     };
     let refine = |graph: &mut Graph, from: usize| {
         graph.extend_tips(&prep.pts, &prep.main, &p, from);
@@ -188,6 +189,8 @@ pub fn reconstruct_with_progress(
             if g2.positions.len() > from {
                 graph.pos = g2.positions.iter().map(|x| Vector3::from(*x)).collect();
                 graph.parent = g2.parents.clone();
+                // The seeds keep their flags; this pass does not bridge.
+                graph.bridge.resize(graph.pos.len(), false);
                 refine(&mut graph, from);
                 (skeleton, fits_used) = radii(&graph)?;
             }
@@ -223,6 +226,14 @@ pub fn reconstruct_with_progress(
         }
         far_tips += removed;
         (skeleton, fits_used) = radii(&graph)?;
+    }
+    // The twig ends points need (other than bridges): onto those points.
+    let tails = far_tails(&skeleton, &prep.tree, near_m);
+    if !tails.is_empty() {
+        let r: Vec<f64> = skeleton.nodes().iter().map(|n| n.radius_m).collect();
+        if graph.onto_cloud(&tails, &prep.tree, &prep.pts, &r) > 0 {
+            (skeleton, fits_used) = radii(&graph)?;
+        }
     }
     let branches = skeleton.branches();
     Ok(Reconstruction {

@@ -46,6 +46,8 @@ const CENTRING_PASSES: usize = 4;
 pub(crate) struct Graph {
     pub pos: Vec<Vector3<f64>>,
     pub parent: Vec<Option<usize>>,
+    /// Nodes of straight bridges across gaps (the rest were grown or extended).
+    pub bridge: Vec<bool>,
 }
 
 impl Graph {
@@ -140,6 +142,7 @@ impl Graph {
             for k in 1..=(steps as usize) {
                 self.pos.push(base + dir * (reach * k as f64 / steps));
                 self.parent.push(Some(parent));
+                self.bridge.push(false);
                 parent = self.pos.len() - 1;
             }
         }
@@ -351,16 +354,19 @@ impl Graph {
         let mut map = vec![usize::MAX; self.pos.len()];
         let mut pos = Vec::new();
         let mut parent = Vec::new();
+        let mut bridge = Vec::new();
         for i in 0..self.pos.len() {
             let ok = keep[i] && self.parent[i].is_none_or(|p| map[p] != usize::MAX);
             if ok {
                 map[i] = pos.len();
                 pos.push(self.pos[i]);
                 parent.push(self.parent[i].map(|p| map[p]));
+                bridge.push(self.bridge[i]);
             }
         }
         self.pos = pos;
         self.parent = parent;
+        self.bridge = bridge;
     }
 
     /// The skeleton with pipe-model radii: each segment's radius^e is proportional to the
@@ -560,6 +566,34 @@ pub(crate) fn far_tails(skeleton: &Skeleton, tree: &PointTree, near_m: f64) -> V
     tails
 }
 
+impl Graph {
+    /// Move the nodes of `tails` (twig ends in the air that points need, see [`far_tails`])
+    /// onto the cloud: a node farther than its radius from its nearest point goes to that
+    /// distance from it, along the line from the point, where the twig's axis is when the
+    /// point is on its surface. Bridge nodes stay: they cross a gap on purpose. Returns how
+    /// many nodes moved.
+    pub(crate) fn onto_cloud(
+        &mut self,
+        tails: &[Vec<usize>],
+        tree: &PointTree,
+        pts: &[[f64; 3]],
+        radius_m: &[f64],
+    ) -> usize {
+        let mut moved = 0;
+        for &v in tails.iter().flatten().filter(|&&v| !self.bridge[v]) {
+            let p = self.pos[v];
+            let nb = tree.nearest_one::<SquaredEuclidean>(&[p.x, p.y, p.z]);
+            let q = Vector3::from(pts[nb.item as usize]);
+            let d = nb.distance.sqrt();
+            if d > radius_m[v] && d > 0.0 {
+                self.pos[v] = q + (p - q) * (radius_m[v] / d);
+                moved += 1;
+            }
+        }
+        moved
+    }
+}
+
 /// Which `stubs` are artefacts: those no point needs. A stub is needed when a point that is
 /// farther than `near_m` from the model without the stubs (`pruned_distance`, per point) is
 /// nearer to one of the stub's nodes than to that model: a short twig into a leaf clump of
@@ -614,7 +648,12 @@ mod tests {
         parent.push(Some(5));
         pos.push(Vector3::new(0.06, 0.0, 0.5));
         parent.push(Some(11));
-        Graph { pos, parent }
+        let bridge = vec![false; pos.len()];
+        Graph {
+            pos,
+            parent,
+            bridge,
+        }
     }
 
     #[test]
@@ -642,6 +681,7 @@ mod tests {
         g.parent.push(Some(12));
         g.pos.push(Vector3::new(0.14, 0.0, 0.5));
         g.parent.push(Some(13));
+        g.bridge.extend([false, false]);
         let (sk, _) = g.to_skeleton(2.5, 0.02, None).unwrap();
         let mut pts: Vec<[f64; 3]> = (0..=100).map(|k| [0.0, 0.0, 0.01 * f64::from(k)]).collect();
         pts.extend((0..=6).map(|k| [0.01 * f64::from(k), 0.0, 0.5]));
@@ -653,6 +693,22 @@ mod tests {
         assert_eq!(far_tails(&sk, &tree, 0.01), vec![vec![13, 14]]);
         // The trunk's top is no tail: its points reach it.
         assert!(far_tails(&sk, &tree, 0.005).iter().all(|t| t[0] > 10));
+        // Onto the cloud: the tail's nodes go to their radius from their nearest point (the
+        // twig's last point, 6 cm out), and no segment is in the air any more; as a bridge,
+        // the same tail stays where it is.
+        let r: Vec<f64> = sk.nodes().iter().map(|n| n.radius_m).collect();
+        let tails = far_tails(&sk, &tree, 0.01);
+        let mut bridged = g.clone();
+        bridged.bridge[13] = true;
+        bridged.bridge[14] = true;
+        assert_eq!(bridged.onto_cloud(&tails, &tree, &pts, &r), 0);
+        assert_eq!(bridged.pos, g.pos);
+        assert_eq!(g.onto_cloud(&tails, &tree, &pts, &r), 2);
+        for v in [13, 14] {
+            assert!((g.pos[v] - Vector3::new(0.06 + r[v], 0.0, 0.5)).norm() < 1e-12);
+        }
+        let (moved, _) = g.to_skeleton(2.5, 0.02, None).unwrap();
+        assert!(far_tails(&moved, &tree, 0.01).is_empty());
     }
 
     #[test]

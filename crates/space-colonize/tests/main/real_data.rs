@@ -39,12 +39,11 @@ fn coffee_tree_is_close_to_its_cloud() {
     assert!(model.growth.radius_fits_used);
     assert!(m.within_2cm > 0.99, "{m:?}");
     // The goals against TreeQSM's published model of this cloud: length and
-    // volume within 10 %, every model part within 2 cm of the cloud (all but one twig
-    // that a point needs, 0.2 mm over).
+    // volume within 10 %, every model part within 2 cm of the cloud.
     assert!((m.total_length_m / 32.8 - 1.0).abs() < 0.1, "{m:?}");
     assert!((m.volume_l / 21.6 - 1.0).abs() < 0.1, "{m:?}");
-    assert!(m.length_near_cloud > 0.999, "{m:?}");
-    assert!(m.max_model_gap_m < 0.021, "{m:?}");
+    assert!(m.length_near_cloud > 0.9999, "{m:?}");
+    assert!(m.max_model_gap_m <= space_colonize::NEAR_CLOUD_M, "{m:?}");
 }
 
 #[test]
