@@ -101,14 +101,8 @@ fn small_twin_recovers_frequency_damping_and_skeleton() {
             .unwrap_or_else(|| panic!("{}: no mode; {:?}", b.id, b.notes));
         let f_err = (ours.frequency_hz - truth.frequency_hz).abs() / truth.frequency_hz;
         let xi_err = (ours.damping_ratio - truth.damping_ratio).abs() / truth.damping_ratio;
-        // The goals (f within 1 %, xi within 15 %) for levels 1-2; the level-3 twig
-        // of this small twin (colour at half resolution, 1.5x the dominant frequency, xi
-        // 0.13) is noise-limited: its bounds are the ones docs/validation.md reports.
-        let (f_tol, xi_tol) = if b.level <= 2 {
-            (0.01, 0.15)
-        } else {
-            (0.03, 0.45)
-        };
+        // The goals: f within 1 %, xi within 15 %, on every level.
+        let (f_tol, xi_tol) = (0.01, 0.15);
         assert!(
             f_err < f_tol,
             "{} level {}: f {} vs {}",

@@ -471,9 +471,11 @@ pub fn tracked_fractions(capture: &Capture) -> BTreeMap<String, f64> {
         .collect()
 }
 
-/// Relative angles and modes of every branch: ours on the signed component that moves most
-/// (free decay, matrix pencil + least squares), the paper's on eq. (1) (FFT peak and
-/// half-power band). A branch with an entry in `windows_s` is measured inside that time
+/// Relative angles and modes of every branch: ours on the child marker's displacement from
+/// its parent's marker along its main direction of motion (free decay, matrix pencil +
+/// least squares; the signed angle component that moves most where that displacement
+/// cannot be formed), the paper's on eq. (1) (FFT peak and half-power band). The series
+/// kept for the figures is the signed angle. A branch with an entry in `windows_s` is measured inside that time
 /// window only (its own pull-and-release test); the others on the whole record.
 ///
 /// # Errors
@@ -547,12 +549,24 @@ pub fn analyse(
             None => &b.angle_rad,
         };
         result.series.1 = series.values.clone();
+        // Ours is fitted on the child's displacement from its parent's marker along its
+        // main direction of motion: the angle sees only the part of a swing across the
+        // chord, and a twig swinging along it (toward or away from the parent's marker)
+        // leaves the angle a small, distorted copy of its motion.
+        let displacement = relative_swing(trajectories, &b.parent, &b.child, &times, (w0, w1));
         let window = |signal: Signal| match windows_s.get(&b.child) {
             Some(&(start_s, end_s)) => signal.slice_time(start_s, end_s),
             None => signal,
         };
         result.window_s = windows_s.get(&b.child).copied();
-        match Signal::from_measured(times.clone(), series.values.clone(), &series.measured)
+        let (values, measured) = match &displacement {
+            Some(d) => (
+                d.clone(),
+                d.iter().map(Option::is_some).collect::<Vec<bool>>(),
+            ),
+            None => (series.values.clone(), series.measured.clone()),
+        };
+        match Signal::from_measured(times.clone(), values, &measured)
             .and_then(|signal| estimate(&window(signal), &EstimateConfig::default()))
         {
             Ok(e) => {
@@ -613,4 +627,45 @@ pub fn analyse(
         out.push(result);
     }
     Ok(out)
+}
+
+/// The child's position relative to its parent's marker, projected on the direction it
+/// moves most in `window` (the first principal axis of the relative positions there),
+/// metres: one coordinate of the swing whichever way it goes, across or along the chord.
+fn relative_swing(
+    trajectories: &Trajectories,
+    parent: &str,
+    child: &str,
+    times: &[f64],
+    window: (f64, f64),
+) -> Option<Vec<Option<f64>>> {
+    let (p, c) = (trajectories.marker(parent)?, trajectories.marker(child)?);
+    let rel: Vec<Option<Vector3<f64>>> = p
+        .positions_m
+        .iter()
+        .zip(&c.positions_m)
+        .map(|(a, b)| Some(b.as_ref()? - a.as_ref()?))
+        .collect();
+    let inside: Vec<Vector3<f64>> = rel
+        .iter()
+        .zip(times)
+        .filter(|(_, t)| (window.0..=window.1).contains(*t))
+        .filter_map(|(r, _)| *r)
+        .collect();
+    if inside.len() < 3 {
+        return None;
+    }
+    let mean = inside.iter().sum::<Vector3<f64>>() / inside.len() as f64;
+    let cov = inside
+        .iter()
+        .map(|r| (r - mean) * (r - mean).transpose())
+        .sum::<treemocap::nalgebra::Matrix3<f64>>();
+    let eig = cov.symmetric_eigen();
+    let k = eig.eigenvalues.imax();
+    let axis: Vector3<f64> = eig.eigenvectors.column(k).into();
+    Some(
+        rel.iter()
+            .map(|r| r.map(|r| (r - mean).dot(&axis)))
+            .collect(),
+    )
 }
