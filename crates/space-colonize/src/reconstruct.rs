@@ -21,7 +21,7 @@ const PRE_CENTRING_PASSES: usize = 3;
 const TWIG_PASS_MIN_DISTANCE_M: f64 = NEAR_CLOUD_M;
 
 /// Rounds of cutting twigs that end in the air (the radii change after a cut, so a second
-/// round can find more; on the leaf-off coffee tree the first finds all).
+/// round can find more).
 const FAR_TIP_ROUNDS: usize = 2;
 
 /// A twig end counts as in the air beyond this many point spacings from every point, when
