@@ -49,15 +49,21 @@
 //! ```
 #![forbid(unsafe_code)]
 
+mod assign;
 mod backproject;
-mod context;
+mod detect;
 mod error;
 mod histogram;
 mod hsv;
+mod kalman;
 mod meanshift;
 mod model;
 mod rect;
+mod region;
+mod rng;
+pub mod stress;
 pub mod synthetic;
+mod template;
 mod tracker;
 mod view;
 

@@ -109,8 +109,13 @@ impl AppearanceModel {
 pub(crate) enum MarkerModel {
     /// Back-projection of a normalised histogram (hue, hue–saturation, gray).
     Projected { projector: BackProjector },
-    /// Kernel-weighted target histogram `q` (sums to 1) for Bhattacharyya tracking.
-    Kernel { hist: Histogram, q: Vec<f64> },
+    /// Kernel-weighted target histogram `q` (sums to 1) for Bhattacharyya tracking, and
+    /// `q` scaled to 0..255 per bin as a back-projection for detection.
+    Kernel {
+        hist: Histogram,
+        q: Vec<f64>,
+        weight: Vec<f32>,
+    },
 }
 
 /// Feature bytes of every pixel of `rect` (inside the image), row-major, 3 per pixel, with
@@ -178,7 +183,9 @@ impl MarkerModel {
                     });
                 }
                 q.iter_mut().for_each(|v| *v /= total);
-                Ok(Self::Kernel { hist, q })
+                let top = q.iter().copied().fold(0.0, f64::max);
+                let weight = q.iter().map(|&v| (255.0 * v / top) as f32).collect();
+                Ok(Self::Kernel { hist, q, weight })
             }
             _ => {
                 if background_weighting {
@@ -246,4 +253,62 @@ pub(crate) fn kernel_r2(i: f64, j: f64, w: usize, h: usize) -> f64 {
     let dx = (i - (w as f64 - 1.0) * 0.5) / hx;
     let dy = (j - (h as f64 - 1.0) * 0.5) / hy;
     dx * dx + dy * dy
+}
+
+/// Lowest saturation a marker's own limits may go down to: below it, a pixel is gray and its
+/// hue is noise (8-bit levels; a grey wall with colour noise stays under about 20).
+const SATURATION_FLOOR: u8 = 24;
+/// Lowest value a marker's own limits may go down to (8-bit levels).
+const VALUE_FLOOR: u8 = 16;
+/// A marker's limits keep this share of the saturation and value of its palest tenth of
+/// pixels: a marker blurred into a streak two and a half times its width is covered at most
+/// about 0.4 of the exposure at its ends, and loses saturation in proportion.
+const MASK_MARGIN: f64 = 0.5;
+
+/// The HSV limits of the marker in `window`: as `mask`, with the saturation and value floors
+/// lowered to half of what the marker's palest tenth shows (never below a gray's), so that a
+/// blurred, paler marker still counts. For the models that read RGB or gray, `mask` as is.
+pub(crate) fn marker_mask(
+    frame: &RgbImage,
+    window: PixelRect,
+    model: &AppearanceModel,
+    mask: &ChannelRange,
+) -> ChannelRange {
+    if !matches!(
+        model,
+        AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. }
+    ) {
+        return *mask;
+    }
+    let (w, h) = (window.width.max(1) as usize, window.height.max(1) as usize);
+    let mut s = Vec::new();
+    let mut v = Vec::new();
+    for (k, f) in features_in(frame, window, model, mask).iter().enumerate() {
+        let Some(hsv) = f else { continue };
+        if kernel_r2((k % w) as f64, (k / w) as f64, w, h) < 0.5 {
+            s.push(hsv[1]);
+            v.push(hsv[2]);
+        }
+    }
+    if s.is_empty() {
+        return *mask;
+    }
+    let tenth = |values: &mut Vec<u8>| {
+        let i = values.len() / 10;
+        *values.select_nth_unstable(i).1
+    };
+    let (s10, v10) = (tenth(&mut s), tenth(&mut v));
+    let lower = |floor: u8, own: u8, given: u8| {
+        ((f64::from(own) * MASK_MARGIN).round() as u8)
+            .max(floor)
+            .min(given)
+    };
+    ChannelRange {
+        lower: [
+            mask.lower[0],
+            lower(SATURATION_FLOOR, s10, mask.lower[1]),
+            lower(VALUE_FLOOR, v10, mask.lower[2]),
+        ],
+        upper: mask.upper,
+    }
 }

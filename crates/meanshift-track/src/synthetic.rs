@@ -9,6 +9,7 @@ use nalgebra::{Point2, Vector2};
 
 use crate::error::{Result, TrackError};
 use crate::rect::PixelRect;
+use crate::rng::Rng;
 use crate::tracker::{MarkerInit, Track};
 
 /// The paper's markers: saturated red (as `kinect-io`'s `synth::MARKER_RGB`).
@@ -197,42 +198,13 @@ impl SyntheticMarker {
     }
 }
 
-#[derive(Debug, Clone)]
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        // SplitMix64 (Steele, Lea, Flood 2014).
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    fn uniform(&mut self) -> f64 {
-        (self.next() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-
-    fn range(&mut self, [lo, hi]: [f64; 2]) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-
-    fn normal(&mut self) -> f64 {
-        // Box–Muller.
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
-}
-
 /// Generate a sequence.
 ///
 /// # Errors
 /// As [`SequenceConfig::validate`].
 pub fn generate(config: &SequenceConfig) -> Result<Sequence> {
     config.validate()?;
-    let mut rng = Rng(config.seed ^ 0x6D61_726B_6572); // "marker"
+    let mut rng = Rng::new(config.seed ^ 0x6D61_726B_6572); // "marker"
     let (w, h) = (f64::from(config.width), f64::from(config.height));
     let margin = config.amplitude_px[1] + config.marker_diameter_px[1] + 8.0;
     // Markers on a loose grid so their paths rarely cross.

@@ -1,53 +1,56 @@
-//! The multi-marker tracker: mean-shift per marker on a window of fixed size (the paper's
-//! choice) or CamShift's adaptive size, with what the paper did by hand done automatically:
-//! prediction from recent motion, a low-confidence test, an enlarged search started from four
-//! directions around the prediction, exclusive assignment so that two markers of one colour
-//! never take the same blob, coasting through brief occlusions, and user re-seeding.
+//! The multi-marker tracker: mean-shift per marker as the paper ran it, with what the paper
+//! did by hand done automatically and a motion model that knows how unsure it is.
 //!
-//! Each frame, per marker:
-//! 1. predict the centre (static, constant velocity, or an alpha–beta filter);
-//! 2. mean-shift from the prediction over a region a little larger than the window, computing
-//!    the model's weights only there (never over the whole frame);
-//! 3. accept when the confidence is at least [`TrackerConfig::min_confidence`], no marker
-//!    nearer to its own prediction already took the same place, and, after a jump of more
-//!    than half a window, the surroundings still look like the marker's
-//!    ([`TrackerConfig::context_check`]) (status `tracked`);
-//! 4. otherwise search: mean-shift with a window twice the size, started at the prediction,
-//!    the last centre and four points left, right, above and below it at half and full
-//!    [`TrackerConfig::search_radius_windows`], each refined with the normal window; the
-//!    places other markers took this frame do not vote. The best candidate by confidence,
-//!    discounted by its distance from the prediction and by how much less familiar its
-//!    surroundings are, is accepted if confident enough (status `recovered`);
-//! 5. otherwise coast on the prediction for up to [`TrackerConfig::max_coast_frames`] frames
-//!    (status `predicted`) with a decaying velocity, then report `lost` (no centre) while the
-//!    search keeps widening.
+//! Each frame:
+//! 1. **Predict** every marker with a constant-velocity Kalman filter ([`MotionModel`]); its
+//!    covariance is the gate: how far from the prediction a measurement may lie.
+//! 2. **Quick pass**: mean-shift from the prediction over a region three windows wide; the
+//!    measurement is the weighted centroid of the blob the window converged on (for a marker
+//!    smeared by motion blur, the streak's centre), or the window's centroid when no
+//!    marker-sized blob is there. A marker found in the last frame is `tracked` when the
+//!    measurement lies in the gate, looks like the marker (its [`Observation::confidence`] is
+//!    at least [`TrackerConfig::min_confidence`]), no other marker holds that place or is
+//!    nearer to it, and, after a jump of more than half a window, its surroundings still look
+//!    like the marker's ([`TrackerConfig::context_check`]).
+//! 3. **Detection** for every other marker: the motion model takes the miss as a manoeuvre
+//!    (a release), so the gate opens to [`TrackerConfig::search_radius_windows`] windows, and
+//!    wider with every further frame without a measurement, up to the whole frame. In the gate,
+//!    the marker's appearance is thresholded into connected blobs; blobs of a marker's width
+//!    and colour are candidates. All undecided markers and all candidates are then **assigned
+//!    jointly and exclusively** at least total cost (squared gate distance plus appearance and
+//!    surroundings), so a candidate goes to the marker it fits best, and to none whose gate or
+//!    appearance it does not fit. A marker so found is `recovered`.
+//! 4. A marker without a measurement coasts on its prediction (`predicted`) for up to
+//!    [`TrackerConfig::max_coast_frames`] frames, then is `lost` (no centre) while the search
+//!    goes on.
 //!
-//! Centres are the weighted centroid of the converged window, in pixel coordinates with pixel
-//! centres at integers.
+//! Centres are in pixel coordinates with pixel centres at integers.
 
 use image::RgbImage;
-use nalgebra::{Point2, Vector2};
+use nalgebra::Point2;
 
-use crate::context::ContextTemplate;
+use crate::assign::assign;
+use crate::detect::{Blob, Labeler};
 use crate::error::{Result, TrackError};
 use crate::hsv::ChannelRange;
+use crate::kalman::Kalman;
 use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
-use crate::model::{AppearanceModel, MarkerModel};
+use crate::model::{AppearanceModel, MarkerModel, marker_mask};
 use crate::rect::PixelRect;
+use crate::region::{Mode, PixelFilter, Region, Streak};
+use crate::template::Template;
 
-/// No bin (masked out, gated, claimed or outside the histogram's range).
-const NO_BIN: u32 = u32::MAX;
-/// Shift in pixels below which the kernel (Bhattacharyya) mean-shift has converged
-/// (Comaniciu et al. 2003 stop below one pixel; sub-pixel centres need a finer stop, since
-/// on a uniform blob each step covers only part of the remaining distance).
-const KERNEL_EPSILON_PX: f64 = 0.05;
-/// Iteration limit of the kernel mean-shift.
-const KERNEL_MAX_ITERATIONS: usize = 30;
-/// Border of CamShift's size estimate around the converged window (OpenCV's `TOLERANCE`).
-const ADAPTIVE_BORDER_PX: i32 = 10;
-/// The search window is this many times the marker window (the paper's "increased search
-/// area").
-const SEARCH_WINDOW_SCALE: i32 = 2;
+/// Squared gate distance (2 degrees of freedom) inside which a measurement belongs to a
+/// prediction: the chi-square quantile of 0.999.
+const GATE_CHI2: f64 = 13.82;
+/// Standard deviation of a measured centre (pixels).
+const MEASUREMENT_PX: f64 = 1.0;
+/// Least acceleration noise of the motion model (pixels per frame²): a marker at rest still
+/// trembles.
+const ACCELERATION_MIN_PX: f64 = 0.7;
+/// Share of each frame's squared innovation blended into the acceleration noise: the model
+/// expects as much change as it has recently seen.
+const ACCELERATION_RATE: f64 = 0.3;
 /// Markers closer than this fraction of their mean window size are on the same blob.
 const EXCLUSION_FRACTION: f64 = 0.75;
 /// The context template is this many times the window in each direction: the marker and
@@ -55,29 +58,57 @@ const EXCLUSION_FRACTION: f64 = 0.75;
 const CONTEXT_SCALE: i32 = 2;
 /// Share of each accepted frame's patch blended into the context template.
 const CONTEXT_RATE: f32 = 0.1;
-/// Share of each accepted frame's correlation blended into the marker's typical correlation.
-const CONTEXT_LEVEL_RATE: f64 = 0.2;
-/// A candidate of the quick pass whose context correlation is this far below the marker's
-/// typical one is doubted and sent to the search.
+/// Share of each confidently tracked frame's patch blended into a gray target's template.
+const TEMPLATE_RATE: f32 = 0.05;
+/// Least confidence (template correlation) of a frame that updates a gray target's template.
+const TEMPLATE_UPDATE_CONFIDENCE: f64 = 0.8;
+/// A quick-pass result after a jump whose context correlation is this far below the
+/// marker's typical one goes to the joint assignment, where other candidates compete.
 const CONTEXT_DROP: f64 = 0.08;
 /// Typical context correlation below which the surroundings are too plain or too noisy to
-/// tell markers apart, and the context check is skipped for the marker.
+/// tell markers apart, and the context is not used for the marker.
 const CONTEXT_MIN_LEVEL: f64 = 0.6;
-/// The search discounts a candidate by a Gaussian of its distance from the prediction with
-/// this fraction of the search radius as its sigma: a confident blob at the edge of the
-/// search is worth an eighth of one at the prediction.
-const SEARCH_SIGMA_FRACTION: f64 = 0.5;
-/// Share of the velocity kept per coasting frame.
-const COAST_VELOCITY_DECAY: f64 = 0.5;
-/// Two centres closer than this fraction of the window size are the same place.
-const SAME_PLACE_FRACTION: f64 = 0.25;
-/// The search does not accept a candidate whose context correlation is this far below the
-/// marker's typical one (more than [`CONTEXT_DROP`]: motion blur at a release lowers the
-/// correlation of the true marker too).
-const CONTEXT_REJECT: f64 = 0.12;
-/// Scale of the context term in the search score, `exp((ncc - typical) / scale)`: a
-/// candidate 0.1 below is worth about an eighth of one at the typical level.
-const CONTEXT_SHARPNESS: f64 = 0.05;
+/// Most a candidate's context shortfall (from the best candidate's) may cost.
+const CONTEXT_CAP: f64 = 12.0;
+/// Least spread assumed for a marker's context correlation.
+const CONTEXT_SIGMA_MIN: f64 = 0.02;
+/// Most a candidate's confidence shortfall (from the best candidate's) may cost.
+const APPEARANCE_CAP: f64 = 8.0;
+/// Least spread assumed for a marker's confidence.
+const CONFIDENCE_SIGMA_MIN: f64 = 0.08;
+/// Share of each found frame blended into a marker's running appearance statistics.
+const APPEARANCE_RATE: f64 = 0.2;
+/// Prior probability that a marker is not where the motion model expects it (a release, a
+/// jump): the weight of the wide component of the motion likelihood.
+const MANOEUVRE_PRIOR: f64 = 0.1;
+/// Cost (negative log-likelihood, relative to a perfect candidate at the prediction) above
+/// which a marker rather stays unmatched.
+const UNMATCHED_COST: f64 = 12.0;
+/// Extra cost of a candidate on a look-alike the marker has turned down before, when it lies
+/// outside the motion model's normal gate.
+const DISTRACTOR_COST: f64 = 6.0;
+/// A candidate within this fraction of the window of a known look-alike is on it.
+const DISTRACTOR_RADIUS: f64 = 0.3;
+/// Look-alikes remembered per marker (the oldest is forgotten first).
+const MAX_DISTRACTORS: usize = 32;
+/// A look-alike seen again within this distance (pixels) has not moved.
+const STATIC_PX: f64 = 1.5;
+/// Border of CamShift's size estimate around the window (OpenCV's `TOLERANCE`).
+const ADAPTIVE_BORDER_PX: i32 = 10;
+/// Blob pixels are those whose weight is at least this share of the marker's typical pixel
+/// weight.
+const BLOB_THRESHOLD: f32 = 0.35;
+/// A blob needs at least this share of the marker's pixels (a partly covered marker).
+const BLOB_MIN_PIXELS: f64 = 0.15;
+/// A candidate blob's width (minor axis) lies within these multiples of the marker's.
+const BLOB_WIDTH_RANGE: [f64; 2] = [0.4, 1.7];
+/// Longest streak a blob may be, in marker widths (a marker swept across 5 of its widths
+/// during the exposure).
+const BLOB_MAX_LENGTH: f64 = 6.0;
+/// Most candidates per marker and frame (the heaviest blobs).
+const MAX_CANDIDATES: usize = 16;
+/// Share of the velocity kept per frame without a measurement: a swing turns back.
+const COAST_VELOCITY_DECAY: f64 = 0.8;
 
 /// Whether the window keeps its size or adapts it as CamShift does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -89,22 +120,51 @@ pub enum WindowMode {
     Adaptive,
 }
 
+impl WindowMode {
+    /// `fixed` or `adaptive`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Fixed => "fixed",
+            Self::Adaptive => "adaptive",
+        }
+    }
+
+    /// The mode of a name (`fixed`, `adaptive`).
+    ///
+    /// # Errors
+    /// [`TrackError::InvalidParameter`] for any other name.
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "fixed" => Ok(Self::Fixed),
+            "adaptive" => Ok(Self::Adaptive),
+            other => Err(TrackError::param(
+                "window mode",
+                format!("{other:?}; expected fixed or adaptive"),
+            )),
+        }
+    }
+}
+
 /// How the tracker predicts a marker's centre in the next frame. Velocities are in pixels per
 /// frame: the tracker assumes the frames it is given are equally spaced in time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MotionModel {
-    /// The last centre (plain mean-shift, the paper).
+    /// The last centre, with no velocity (plain mean-shift, the paper).
     Static,
-    /// The last centre plus the last frame-to-frame displacement.
-    ConstantVelocity,
-    /// An alpha–beta filter on position and velocity (Kalata 1984); `alpha` and `beta` in
-    /// `0..=1` (position and velocity gains).
-    AlphaBeta {
-        /// Position gain.
-        alpha: f64,
-        /// Velocity gain.
-        beta: f64,
+    /// A constant-velocity Kalman filter whose acceleration noise follows the recent motion
+    /// (at least `min_acceleration_px` pixels per frame²); its covariance sets the gate.
+    ConstantVelocity {
+        /// Least acceleration noise, pixels per frame².
+        min_acceleration_px: f64,
     },
+}
+
+impl MotionModel {
+    /// The default: a constant-velocity Kalman filter with at least 0.7 px/frame² of
+    /// acceleration noise.
+    pub const KALMAN: MotionModel = MotionModel::ConstantVelocity {
+        min_acceleration_px: ACCELERATION_MIN_PX,
+    };
 }
 
 /// Tracker settings. [`TrackerConfig::default`] is the recovering tracker with the paper's hue
@@ -115,26 +175,26 @@ pub struct TrackerConfig {
     /// Appearance model. Default: [`AppearanceModel::PAPER`] (16-bin hue).
     pub model: AppearanceModel,
     /// Pixels outside this HSV range do not count for the hue and hue–saturation models
-    /// (gray pixels have hue 0, red, so a saturation floor is needed). Default: saturation
+    /// (gray pixels have hue 0, red, so a saturation floor is needed). Each marker lowers the
+    /// saturation and value floors to half of what its own palest pixels show (never below
+    /// 24 and 16), so that a blurred, paler marker still counts. Default: saturation
     /// 60..=255, value 32..=255, any hue.
     pub hsv_mask: ChannelRange,
     /// Fixed or adaptive window. Default: fixed.
     pub window: WindowMode,
     /// Mean-shift stopping rule per search. Default: OpenCV's `(EPS | COUNT, 10, 1)`.
     pub criteria: TermCriteria,
-    /// Prediction. Default: alpha–beta with alpha 0.85, beta 0.5 (follows a swinging branch
-    /// and settles quickly after a release).
+    /// Prediction. Default: [`MotionModel::KALMAN`].
     pub motion: MotionModel,
-    /// Confidence below which the tracker searches (0..1). For the histogram models the
-    /// confidence is the back-projection mass in the window relative to the first frame's,
-    /// capped at 1; for the RGB model it is the Bhattacharyya coefficient. Default 0.4 (0.7
-    /// with [`TrackerConfig::for_model`] and the RGB model).
+    /// Confidence (see [`Observation::confidence`]) below which a measurement is not
+    /// accepted (0..1). Default 0.35.
     pub min_confidence: f64,
-    /// Whether low confidence triggers the enlarged search (false: plain mean-shift).
-    /// Default true.
+    /// Whether a marker that is not where mean-shift expects it is looked for by detection
+    /// (false: plain mean-shift, never lost). Default true.
     pub recovery: bool,
-    /// Radius of the recovery search around the prediction, in window sizes (the larger of
-    /// width and height). Default 4.
+    /// Radius of the gate on the first frame without a measurement, in window sizes (the
+    /// larger of width and height); it grows with every further such frame. Default 5 (a
+    /// release moves a marker 2–5 windows in a frame).
     pub search_radius_windows: f64,
     /// Frames a marker may coast on its prediction before it is reported lost. Default 5.
     pub max_coast_frames: usize,
@@ -149,14 +209,14 @@ pub struct TrackerConfig {
     pub background_weighting: bool,
     /// Tell look-alike markers apart by their surroundings: a gray patch twice the window,
     /// learned on the first frame and updated slowly, is compared with each candidate's by
-    /// normalised cross-correlation; a candidate that correlates clearly worse than the
-    /// marker usually does is searched past, and the search prefers the best-correlating
-    /// candidate. Default true; false for the paper's tracker.
+    /// normalised cross-correlation; a candidate that correlates worse than the marker
+    /// usually does costs more in the assignment. Default true; false for the paper's
+    /// tracker.
     pub context_check: bool,
 }
 
 impl TrackerConfig {
-    /// Defaults for `model`: the minimum confidence suits the model's confidence measure.
+    /// Defaults for `model`.
     pub fn for_model(model: AppearanceModel) -> Self {
         Self {
             model,
@@ -166,16 +226,10 @@ impl TrackerConfig {
             },
             window: WindowMode::Fixed,
             criteria: TermCriteria::OPENCV_SAMPLE,
-            motion: MotionModel::AlphaBeta {
-                alpha: 0.85,
-                beta: 0.5,
-            },
-            min_confidence: match model {
-                AppearanceModel::Rgb { .. } => 0.7,
-                _ => 0.4,
-            },
+            motion: MotionModel::KALMAN,
+            min_confidence: 0.35,
             recovery: true,
-            search_radius_windows: 4.0,
+            search_radius_windows: 5.0,
             max_coast_frames: 5,
             depth_gate_m: None,
             exclusive: true,
@@ -202,8 +256,9 @@ impl TrackerConfig {
     ///
     /// # Errors
     /// [`TrackError::InvalidParameter`] naming the field: a model with zero bins, a confidence
-    /// outside 0..=1, a search radius that is not positive and finite, filter gains outside
-    /// 0..=1, a depth gate that is not positive and finite, or a non-finite epsilon.
+    /// outside 0..=1, a search radius that is not positive and finite, an acceleration noise
+    /// that is not positive and finite, a depth gate that is not positive and finite, or a
+    /// non-finite epsilon.
     pub fn validate(&self) -> Result<()> {
         crate::histogram::Histogram::new(self.model.spec())?;
         if !(0.0..=1.0).contains(&self.min_confidence) {
@@ -218,12 +273,14 @@ impl TrackerConfig {
                 format!("{} must be positive and finite", self.search_radius_windows),
             ));
         }
-        if let MotionModel::AlphaBeta { alpha, beta } = self.motion
-            && !((0.0..=1.0).contains(&alpha) && (0.0..=1.0).contains(&beta))
+        if let MotionModel::ConstantVelocity {
+            min_acceleration_px: a,
+        } = self.motion
+            && !(a.is_finite() && a > 0.0)
         {
             return Err(TrackError::param(
                 "motion",
-                format!("alpha {alpha} and beta {beta} must be in 0..=1"),
+                format!("min_acceleration_px {a} must be positive and finite"),
             ));
         }
         if let Some(g) = self.depth_gate_m
@@ -264,13 +321,14 @@ pub struct MarkerInit {
 /// How a marker's centre in a frame was obtained.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TrackStatus {
-    /// Mean-shift from the prediction found the marker.
+    /// Measured where the motion model expected it, looking like the marker.
     Tracked,
-    /// Found by the enlarged search, or found again after coasting or being lost.
+    /// Measured after the motion model was surprised (a release, a jump) or after frames
+    /// without a measurement, by detection and joint assignment.
     Recovered,
-    /// Not found; the centre is the motion prediction (coasting).
+    /// Not measured; the centre is the motion model's prediction (coasting).
     Predicted,
-    /// Not found for too long; no centre.
+    /// Not measured for too long; no centre.
     Lost,
     /// Set by the user ([`Tracker::set_center`]).
     Set,
@@ -288,7 +346,8 @@ impl TrackStatus {
         }
     }
 
-    fn found(&self) -> bool {
+    /// True for a measured or user-set centre (`tracked`, `recovered`, `set`).
+    pub fn found(&self) -> bool {
         matches!(self, Self::Tracked | Self::Recovered | Self::Set)
     }
 }
@@ -296,13 +355,18 @@ impl TrackStatus {
 /// One marker in one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
-    /// Sub-pixel centre (weighted centroid of the converged window); `None` only when lost.
+    /// Sub-pixel centre; `None` only when lost.
     pub center: Option<Point2<f64>>,
     /// The converged window.
     pub window: PixelRect,
     /// How the centre was obtained.
     pub status: TrackStatus,
-    /// Confidence in 0..=1 (see [`TrackerConfig::min_confidence`]); 1 for user-set centres.
+    /// How much the measurement looks like the marker, 0..=1: the share of the marker's
+    /// colour evidence at the measured place (the mean weight of its blob's pixels relative
+    /// to the marker's own on the first frame, capped at 1), times how well the blob's width
+    /// matches the marker's and how much of the marker's area it holds. For the kernel (RGB)
+    /// model, the Bhattacharyya coefficient instead of the weight share. 1 for user-set
+    /// centres; 0 when nothing was measured (`predicted`, `lost`).
     pub confidence: f64,
 }
 
@@ -346,56 +410,101 @@ impl<'a> DepthView<'a> {
         })
     }
 
-    fn at(&self, x: i32, y: i32) -> Option<f64> {
+    /// Depth at a pixel inside the map, `None` where there is none or it is not finite.
+    pub(crate) fn at(&self, x: i32, y: i32) -> Option<f64> {
         self.depth_m[y as usize * self.width as usize + x as usize].filter(|d| d.is_finite())
     }
 }
 
+/// What a marker looked like on the first frame, as the measurements see it.
 #[derive(Debug, Clone, Copy)]
-struct Motion {
-    position: Point2<f64>,
-    velocity: Vector2<f64>,
+struct Reference {
+    /// Weight in the user's window (mean-shift confidence).
+    mass: f64,
+    /// Mean weight of the marker's blob pixels.
+    pixel_weight: f64,
+    /// Blob pixels weigh at least this.
+    threshold: f32,
+    /// Pixels of the marker's blob.
+    pixels: f64,
+    /// Minor axis of the marker's blob (pixels): its width, which motion blur keeps.
+    width_px: f64,
+}
+
+/// A place where a marker's look-alike was seen and turned down.
+#[derive(Debug, Clone, Copy)]
+struct Distractor {
+    at: Point2<f64>,
+    /// Its pixels (the blob's box, grown by a pixel).
+    bounds: PixelRect,
+    /// Times seen at this place (within [`STATIC_PX`]); static from 2 on.
+    seen: u32,
 }
 
 #[derive(Debug, Clone)]
 struct MarkerState {
     id: String,
     model: MarkerModel,
+    mask: ChannelRange,
     init_size: (i32, i32),
     size: (i32, i32),
-    motion: Motion,
+    filter: Kalman,
+    /// Acceleration noise of the motion model now (pixels per frame²).
+    acceleration_px: f64,
     last_center: Point2<f64>,
-    /// Back-projection mass of the first frame's window (histogram models).
-    reference_mass: f64,
+    reference: Reference,
     depth_m: Option<f64>,
-    coasting: usize,
+    /// Frames since the last measurement.
+    misses: usize,
     last_status: TrackStatus,
     /// The surroundings, with [`TrackerConfig::context_check`].
-    context: Option<ContextTemplate>,
+    context: Option<Template>,
+    /// The marker's own window as a gray template (gray model): its measurement.
+    template: Option<Template>,
     /// Typical context correlation of accepted frames.
     context_level: f64,
+    /// Variance of the context correlation of accepted frames.
+    context_var: f64,
+    /// Typical confidence of accepted frames.
+    confidence_mean: f64,
+    /// Variance of the confidence of accepted frames.
+    confidence_var: f64,
+    /// Innovation variance of this frame's prediction (pixels²).
+    gate_var: f64,
+    /// Look-alikes this marker turned down.
+    distractors: Vec<Distractor>,
+    /// Mean colour (RGB) of the marker's pixels on the first frame.
+    colour: [f32; 3],
 }
 
-/// The result of a mean-shift from one start.
+/// A measurement: where, how well it looks like the marker, and the pixels it holds.
 #[derive(Debug, Clone, Copy)]
-struct Mode {
+struct Measured {
     center: Point2<f64>,
+    /// The window at the measurement.
     window: PixelRect,
+    /// Pixels this measurement occupies (the blob's box, or the window).
+    holds: PixelRect,
     confidence: f64,
-    /// Moments of the converged window (histogram models), for the adaptive size.
+    /// Moments of the window and a border (histogram models), for the adaptive size.
     moments: Option<Moments>,
 }
 
-/// The model's weights over a region of the frame.
-#[derive(Debug, Default)]
-struct Region {
-    rect: PixelRect,
-    /// Back-projection values (histogram models).
-    weights: Vec<f32>,
-    /// Histogram bins (kernel model), [`NO_BIN`] where the pixel does not count.
-    bins: Vec<u32>,
-    /// Candidate histogram scratch (kernel model).
-    p: Vec<f64>,
+/// A candidate of one marker, with its surroundings' correlation and its cost.
+#[derive(Debug, Clone, Copy)]
+struct Scored {
+    measured: Measured,
+    context: Option<f64>,
+    cost: f64,
+}
+
+/// One candidate of the joint assignment.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    marker: usize,
+    measured: Measured,
+    cost: f64,
+    context: Option<f64>,
 }
 
 /// The tracker. Create it on the first frame with the users' windows, then call
@@ -408,8 +517,11 @@ pub struct Tracker {
     markers: Vec<MarkerState>,
     tracks: Vec<Track>,
     region: Region,
+    labeler: Labeler,
     /// Patch scratch for the context correlation.
     patch: Vec<f32>,
+    /// The last frame given: the background of this frame's streaks.
+    previous: Option<RgbImage>,
 }
 
 fn image_rect(width: u32, height: u32) -> PixelRect {
@@ -417,9 +529,10 @@ fn image_rect(width: u32, height: u32) -> PixelRect {
 }
 
 fn clamp_into(p: Point2<f64>, width: u32, height: u32) -> Point2<f64> {
+    let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
     Point2::new(
-        p.x.clamp(0.0, f64::from(width) - 1.0),
-        p.y.clamp(0.0, f64::from(height) - 1.0),
+        finite(p.x).clamp(0.0, f64::from(width) - 1.0),
+        finite(p.y).clamp(0.0, f64::from(height) - 1.0),
     )
 }
 
@@ -457,7 +570,9 @@ impl Tracker {
             markers: Vec::with_capacity(markers.len()),
             tracks: Vec::with_capacity(markers.len()),
             region: Region::default(),
+            labeler: Labeler::default(),
             patch: Vec::new(),
+            previous: None,
         };
         tracker.check_depth(depth.as_ref())?;
         for (k, init) in markers.iter().enumerate() {
@@ -469,6 +584,10 @@ impl Tracker {
         }
         for init in markers {
             tracker.add_marker(first_frame, depth.as_ref(), init)?;
+        }
+        if tracker.config.recovery {
+            tracker.learn_distractors(first_frame, depth.as_ref());
+            tracker.previous = Some(first_frame.clone());
         }
         Ok(tracker)
     }
@@ -513,60 +632,106 @@ impl Tracker {
                 image_height: self.height,
             });
         }
+        let config = &self.config;
         let model = MarkerModel::learn(
             &init.id,
             frame,
             w,
-            &self.config.model,
-            &self.config.hsv_mask,
-            self.config.background_weighting,
+            &config.model,
+            &config.hsv_mask,
+            config.background_weighting,
         )?;
+        let mask = marker_mask(frame, w, &config.model, &config.hsv_mask);
         let center = w.center();
+        let side = f64::from(w.width.max(w.height));
         let mut state = MarkerState {
             id: init.id.clone(),
             model,
+            mask,
             init_size: (w.width, w.height),
             size: (w.width, w.height),
-            motion: Motion {
-                position: center,
-                velocity: Vector2::zeros(),
-            },
+            filter: Kalman::new(center, MEASUREMENT_PX, 0.1 * side),
+            acceleration_px: ACCELERATION_MIN_PX,
             last_center: center,
-            reference_mass: 1.0,
+            reference: Reference {
+                mass: 1.0,
+                pixel_weight: 255.0,
+                threshold: 255.0 * BLOB_THRESHOLD,
+                pixels: w.area() as f64 * 0.5,
+                width_px: side * 0.8,
+            },
             depth_m: None,
-            coasting: 0,
+            misses: 0,
             last_status: TrackStatus::Tracked,
             context: None,
             context_level: 1.0,
+            context_var: 0.0,
+            confidence_mean: 1.0,
+            confidence_var: 0.0,
+            gate_var: 1.0,
+            distractors: Vec::new(),
+            colour: [0.0; 3],
+            template: None,
         };
-        // Reference mass: the mass of the user's window; then refine there.
+        // The reference: the window's mass, and the blob of the marker in it.
+        state.depth_m = depth.and_then(|d| window_depth(d, w));
         let region = w.grown(w.width, w.height);
-        fill_region(
+        fill(
             &mut self.region,
-            &self.config,
+            config,
             &state,
             frame,
+            None,
             depth,
             region,
             &[],
         );
-        if let MarkerModel::Projected { .. } = state.model {
-            state.reference_mass = self.region.mass(w).max(1.0);
-        }
-        let mode = locate(&mut self.region, &self.config, &state, center, state.size);
-        let observation = Observation {
-            center: Some(mode.center),
-            window: mode.window,
-            status: TrackStatus::Tracked,
-            confidence: mode.confidence,
-        };
-        state.last_center = mode.center;
-        state.motion.position = mode.center;
-        state.depth_m = depth.and_then(|d| window_depth(d, mode.window));
-        if self.config.context_check {
-            state.context = Some(ContextTemplate::learn(
+        state.reference.mass = self.region.mass(w).max(1.0);
+        learn_blob(&mut state, &self.region, &mut self.labeler, w);
+        state.colour = mean_colour(frame, &self.region, w, state.reference.threshold);
+        let mode = self.region.locate(
+            &state.model,
+            &config.criteria,
+            state.reference.mass,
+            center,
+            state.size,
+        );
+        let gray = matches!(config.model, AppearanceModel::Gray { .. });
+        let measured = if config.recovery && gray {
+            // A black-and-white target is located by its own window from here on; centre the
+            // template on the target as mean-shift sees it.
+            state.template = Some(Template::learn(
                 frame,
                 mode.center,
+                w.width as usize,
+                w.height as usize,
+            ));
+            Measured {
+                confidence: 1.0,
+                ..plain(&self.region, mode)
+            }
+        } else if config.recovery {
+            let near = |c: &Measured| (c.center - mode.center).norm();
+            candidates_in(&mut self.region, &mut self.labeler, &state, None, &[])
+                .into_iter()
+                .filter(|c| c.holds.intersect(&w).area() > 0)
+                .min_by(|a, b| near(a).total_cmp(&near(b)))
+                .unwrap_or_else(|| plain(&self.region, mode))
+        } else {
+            plain(&self.region, mode)
+        };
+        let observation = Observation {
+            center: Some(measured.center),
+            window: measured.window,
+            status: TrackStatus::Tracked,
+            confidence: measured.confidence,
+        };
+        state.last_center = measured.center;
+        state.filter.position = measured.center;
+        if self.config.context_check {
+            state.context = Some(Template::learn(
+                frame,
+                measured.center,
                 (w.width * CONTEXT_SCALE) as usize,
                 (w.height * CONTEXT_SCALE) as usize,
             ));
@@ -577,6 +742,42 @@ impl Tracker {
             observations: vec![observation],
         });
         Ok(())
+    }
+
+    /// Every marker-like blob of each marker's appearance on the first frame that is not a
+    /// marker: a look-alike from the start.
+    fn learn_distractors(&mut self, frame: &RgbImage, depth: Option<&DepthView<'_>>) {
+        let centres: Vec<(Point2<f64>, f64)> = self
+            .markers
+            .iter()
+            .map(|m| (m.last_center, window_px(m)))
+            .collect();
+        let whole = image_rect(self.width, self.height);
+        for m in &mut self.markers {
+            if m.template.is_some() {
+                continue;
+            }
+            fill(
+                &mut self.region,
+                &self.config,
+                m,
+                frame,
+                None,
+                depth,
+                whole,
+                &[],
+            );
+            for c in candidates_in(&mut self.region, &mut self.labeler, m, None, &[]) {
+                if centres
+                    .iter()
+                    .all(|(p, side)| (p - c.center).norm() > *side)
+                {
+                    let side = window_px(m);
+                    remember_distractor(m, c.center, c.holds, side);
+                    remember_distractor(m, c.center, c.holds, side);
+                }
+            }
+        }
     }
 
     /// Track every marker into the next frame.
@@ -604,166 +805,435 @@ impl Tracker {
         self.check_depth(depth.as_ref())?;
         let depth = depth.as_ref();
         let n = self.markers.len();
+        let (width, height) = (self.width, self.height);
+        for m in &mut self.markers {
+            m.predict(&self.config);
+            m.gate_var = m.filter.innovation_var(MEASUREMENT_PX);
+        }
         let predictions: Vec<Point2<f64>> = self
             .markers
             .iter()
-            .map(|m| clamp_into(m.motion.predict(), self.width, self.height))
+            .map(|m| clamp_into(m.filter.position, width, height))
             .collect();
 
-        // Quick pass: mean-shift from the prediction.
-        let mut quick = Vec::with_capacity(n);
-        for (m, &pred) in self.markers.iter().zip(&predictions) {
-            let (w, h) = m.size;
-            let region = PixelRect::centered_at(pred, w, h).grown(w, h);
-            fill_region(&mut self.region, &self.config, m, frame, depth, region, &[]);
-            quick.push(locate(&mut self.region, &self.config, m, pred, m.size));
+        // Quick pass: near the prediction, the candidate that fits best.
+        let mut quick: Vec<Option<Scored>> = Vec::with_capacity(n);
+        let mut rejected: Vec<Vec<(Point2<f64>, PixelRect)>> = vec![Vec::new(); n];
+        for i in 0..n {
+            let (best, others) = self.quick_pass(frame, depth, i, &predictions);
+            quick.push(best);
+            rejected[i] = others;
         }
-        let quick_context: Vec<Option<f64>> = self
-            .markers
-            .iter()
-            .zip(&quick)
-            .map(|(m, mode)| {
-                m.context
-                    .as_ref()
-                    .map(|t| t.ncc(frame, mode.center, &mut self.patch))
+
+        // Accept confident results in the normal gate, nearest to their prediction first.
+        let d2: Vec<f64> = (0..n)
+            .map(|i| {
+                let m = &self.markers[i];
+                quick[i].as_ref().map_or(f64::INFINITY, |q| {
+                    (q.measured.center - m.filter.position).norm_squared() / m.gate_var
+                })
             })
             .collect();
-
-        // Accept confident results, nearest to their prediction first; a result on a place
-        // already taken goes to the search.
-        let threshold = self.config.min_confidence;
         let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| {
-            let da = (quick[a].center - predictions[a]).norm();
-            let db = (quick[b].center - predictions[b]).norm();
-            da.total_cmp(&db)
-        });
-        let mut results: Vec<Option<(Mode, TrackStatus, Option<f64>)>> = vec![None; n];
+        order.sort_by(|&a, &b| d2[a].total_cmp(&d2[b]));
+        let mut results: Vec<Option<(Measured, TrackStatus, Option<f64>)>> = vec![None; n];
         let mut claimed: Vec<(usize, PixelRect, Point2<f64>)> = Vec::new();
-        let mut to_search = Vec::new();
+        let mut undecided = Vec::new();
         for &i in &order {
-            let mode = quick[i];
+            let m = &self.markers[i];
+            let Some(q) = quick[i] else {
+                undecided.push(i);
+                continue;
+            };
+            if !self.config.recovery {
+                results[i] = Some((q.measured, TrackStatus::Tracked, q.context));
+                continue;
+            }
+            let c = q.measured.center;
             // Identity is in doubt only after a jump of more than half a window, the reach of
             // plain mean-shift: a slower marker cannot have swapped with a look-alike.
-            let m = &self.markers[i];
-            let jumped = (mode.center - m.last_center).norm() > 0.5 * window_px(m);
-            let familiar = !jumped
-                || !m.context_informative()
-                || quick_context[i].is_none_or(|c| c >= m.context_level - CONTEXT_DROP);
-            let accept = mode.confidence >= threshold
+            let jumped = (c - m.last_center).norm() > 0.5 * window_px(m);
+            let familiar =
+                !jumped || !m.context_informative() || q.context.is_none_or(|v| m.familiar(v));
+            let accept = m.misses == 0
+                && q.measured.confidence >= self.config.min_confidence
+                && d2[i] <= GATE_CHI2
+                && !m.on_distractor(c)
                 && familiar
                 && !(self.config.exclusive
-                    && (taken(&self.markers, i, mode.center, &claimed)
-                        || nearer_to_other(&self.markers, i, mode.center, &predictions)));
-            if accept || !self.config.recovery {
-                if accept {
-                    claimed.push((i, mode.window, mode.center));
-                }
-                results[i] = Some((mode, TrackStatus::Tracked, quick_context[i]));
+                    && (taken(&self.markers, i, c, &claimed)
+                        || nearer_to_other(&self.markers, i, c, &predictions)));
+            if accept {
+                claimed.push((i, q.measured.holds, c));
+                results[i] = Some((q.measured, TrackStatus::Tracked, q.context));
             } else {
-                to_search.push(i);
+                undecided.push(i);
             }
         }
 
-        // Search for the rest, with the taken places masked out.
-        for &i in &to_search {
-            let m = &self.markers[i];
-            let pred = predictions[i];
-            let (w, h) = m.size;
-            let size = f64::from(w.max(h));
-            let widen = (m.coasting + 1).min(8) as f64;
-            let radius = (self.config.search_radius_windows * size * widen)
-                .min(f64::from(self.width.max(self.height)));
-            let reach = radius.ceil() as i32 + w.max(h) * SEARCH_WINDOW_SCALE;
-            let region = PixelRect::centered_at(pred, w, h).grown(reach, reach);
-            let masks: Vec<PixelRect> = if self.config.exclusive {
-                claimed.iter().map(|c| c.1).collect()
-            } else {
-                Vec::new()
-            };
-            fill_region(
-                &mut self.region,
-                &self.config,
-                m,
-                frame,
-                depth,
-                region,
-                &masks,
-            );
-            let exclusive = self.config.exclusive;
-            let markers = &self.markers;
-            let scratch = &mut self.patch;
-            let judge = |c: Point2<f64>| {
-                let free = !exclusive
-                    || !(taken(markers, i, c, &claimed)
-                        || nearer_to_other(markers, i, c, &predictions));
-                free.then(|| {
-                    m.context
-                        .as_ref()
-                        .filter(|_| m.context_informative())
-                        .map(|t| t.ncc(frame, c, scratch))
-                })
-            };
-            let level = m.context_level;
-            let quick_place = (quick[i].confidence >= threshold).then_some(quick[i].center);
-            let best = search(
-                &mut self.region,
-                &self.config,
-                m,
-                (
-                    pred,
-                    radius,
-                    SEARCH_SIGMA_FRACTION * self.config.search_radius_windows * size,
-                ),
-                quick[i],
-                judge,
-            );
-            match best {
-                // A candidate that looks less familiar than usual is still taken when it is
-                // where the quick pass went: the search found nothing better, so the
-                // surroundings changed rather than the marker.
-                Some((mode, context))
-                    if mode.confidence >= threshold
-                        && (context.is_none_or(|c| c >= level - CONTEXT_REJECT)
-                            || quick_place.is_some_and(|q| {
-                                (q - mode.center).norm() < SAME_PLACE_FRACTION * size
-                            })) =>
+        // Detection in the opened gates, then one joint assignment.
+        if !undecided.is_empty() {
+            let assigned = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
+            for (&i, found) in undecided.iter().zip(assigned) {
+                results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
+            }
+        }
+
+        // What a found marker saw near it and was not is a look-alike to remember, unless it
+        // is some marker's place.
+        let places_now: Vec<Point2<f64>> = predictions
+            .iter()
+            .copied()
+            .chain(results.iter().flatten().map(|r| r.0.center))
+            .collect();
+        for (i, result) in results.iter().enumerate() {
+            let Some((q, _, _)) = result else { continue };
+            let side = window_px(&self.markers[i]);
+            for &(p, bounds) in &rejected[i] {
+                if (p - q.center).norm() > side && places_now.iter().all(|c| (c - p).norm() > side)
                 {
-                    claimed.push((i, mode.window, mode.center));
-                    results[i] = Some((mode, TrackStatus::Recovered, context));
-                }
-                other => {
-                    let confidence = other.map_or(quick[i].confidence, |(m, _)| m.confidence);
-                    results[i] = Some((
-                        Mode {
-                            center: pred,
-                            window: PixelRect::centered_at(pred, w, h),
-                            confidence,
-                            moments: None,
-                        },
-                        TrackStatus::Predicted,
-                        None,
-                    ));
+                    remember_distractor(&mut self.markers[i], p, bounds, side);
                 }
             }
         }
 
         for (i, result) in results.into_iter().enumerate() {
-            let Some((mode, status, context)) = result else {
-                continue;
-            };
-            let size = (self.width, self.height);
             let m = &mut self.markers[i];
-            let observation = m.advance(mode, status, &self.config, depth, size);
-            if let (Some(c), Some(t)) = (context, m.context.as_mut())
-                && observation.status != TrackStatus::Predicted
-            {
-                t.update(frame, mode.center, CONTEXT_RATE, &mut self.patch);
-                m.context_level += CONTEXT_LEVEL_RATE * (c - m.context_level);
-            }
+            let observation = match result {
+                Some((q, status, context)) => {
+                    let status = if status == TrackStatus::Tracked && !m.last_status.found() {
+                        TrackStatus::Recovered
+                    } else {
+                        status
+                    };
+                    let o = m.found(q, status, &self.config, depth);
+                    m.learn_appearance(q.confidence, context);
+                    if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
+                        t.update(frame, q.center, CONTEXT_RATE, &mut self.patch);
+                    }
+                    if let Some(t) = m.template.as_mut()
+                        && status == TrackStatus::Tracked
+                        && q.confidence >= TEMPLATE_UPDATE_CONFIDENCE
+                    {
+                        t.update(frame, q.center, TEMPLATE_RATE, &mut self.patch);
+                    }
+                    o
+                }
+                None => m.missed(&self.config, (width, height)),
+            };
             self.tracks[i].observations.push(observation);
         }
+        if let Some(p) = self.previous.as_mut() {
+            p.copy_from_slice(frame);
+        }
         Ok(())
+    }
+
+    /// Marker `i`'s quick pass: its candidates near the prediction (the gray template's
+    /// matches, or the blobs of its weights), scored together; the best, and the places of
+    /// the others. Plain mean-shift's mode without recovery, or as the fallback of a
+    /// colour model when no blob fits (at half its confidence).
+    fn quick_pass(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        i: usize,
+        predictions: &[Point2<f64>],
+    ) -> (Option<Scored>, Vec<(Point2<f64>, PixelRect)>) {
+        let frame_side = f64::from(self.width.max(self.height));
+        let m = &self.markers[i];
+        let pred = predictions[i];
+        let (w, h) = m.size;
+        let side = window_px(m);
+        let wide = m.gate_var + manoeuvre_var(&self.config, side, m.misses, frame_side);
+        let found: Vec<Measured>;
+        let mut fallback = None;
+        if let (Some(t), true) = (&m.template, self.config.recovery) {
+            let radius = (GATE_CHI2 * m.gate_var)
+                .sqrt()
+                .clamp(0.25 * side, 1.5 * side);
+            found = template_candidates(t, m, frame, pred, radius, 4, &mut self.patch);
+        } else {
+            let region = PixelRect::centered_at(pred, w, h).grown(w, h);
+            let masks = m.static_masks(region, pred);
+            fill(
+                &mut self.region,
+                &self.config,
+                m,
+                frame,
+                self.previous.as_ref(),
+                depth,
+                region,
+                &masks,
+            );
+            let mode = self.region.locate(
+                &m.model,
+                &self.config.criteria,
+                m.reference.mass,
+                pred,
+                m.size,
+            );
+            let plain_mode = plain(&self.region, mode);
+            if !self.config.recovery {
+                let scored = Scored {
+                    measured: plain_mode,
+                    context: None,
+                    cost: 0.0,
+                };
+                return (Some(scored), Vec::new());
+            }
+            let others = sharing_predictions(&self.markers, i, predictions);
+            found = candidates_in(&mut self.region, &mut self.labeler, m, Some(pred), &others);
+            fallback = Some(Measured {
+                confidence: plain_mode.confidence * 0.5,
+                ..plain_mode
+            });
+        }
+        // Surroundings tell candidates apart only when there is a choice; the chosen one's
+        // are measured below in any case.
+        let ambiguous = found.len() > 1 && m.context_informative();
+        let with_context: Vec<(Measured, Option<f64>)> = found
+            .into_iter()
+            .map(|c| {
+                let context = ambiguous
+                    .then(|| {
+                        m.context
+                            .as_ref()
+                            .map(|t| t.ncc_near(frame, c.center, &mut self.patch))
+                    })
+                    .flatten();
+                (c, context)
+            })
+            .collect();
+        let mut scored = m.score(&with_context, wide);
+        scored.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+        if std::env::var("TRACE").is_ok_and(|v| v == m.id) {
+            for c in &scored {
+                eprintln!(
+                    "f{} quick {} pred ({:.1},{:.1}) gate_var {:.1} cand ({:.1},{:.1}) conf {:.2} ctx {:?} cost {:.2}",
+                    self.tracks[0].observations.len(),
+                    m.id,
+                    pred.x,
+                    pred.y,
+                    m.gate_var,
+                    c.measured.center.x,
+                    c.measured.center.y,
+                    c.measured.confidence,
+                    c.context,
+                    c.cost
+                );
+            }
+        }
+        let others = scored
+            .iter()
+            .skip(1)
+            .map(|c| (c.measured.center, c.measured.holds))
+            .collect();
+        let mut best = scored.into_iter().next().or_else(|| {
+            fallback.map(|f| Scored {
+                measured: f,
+                context: None,
+                cost: f64::INFINITY,
+            })
+        });
+        if let Some(b) = best.as_mut()
+            && b.context.is_none()
+        {
+            b.context = m
+                .context
+                .as_ref()
+                .map(|t| t.ncc_near(frame, b.measured.center, &mut self.patch));
+        }
+        (best, others)
+    }
+
+    /// Open the gates of `undecided` markers, find candidates in them (other markers'
+    /// places masked), and assign candidates (with each marker's quick-pass measurement) to
+    /// markers jointly. Per undecided marker: its measurement and context correlation, or
+    /// `None`.
+    fn detect_and_assign(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        undecided: &[usize],
+        claimed: &[(usize, PixelRect, Point2<f64>)],
+        quick: &[Option<Scored>],
+    ) -> Vec<Option<(Measured, Option<f64>)>> {
+        let config = &self.config;
+        let (width, height) = (self.width, self.height);
+        let frame_side = f64::from(width.max(height));
+        let masks: Vec<PixelRect> = if config.exclusive {
+            claimed.iter().map(|c| c.1).collect()
+        } else {
+            Vec::new()
+        };
+        let all: Vec<Point2<f64>> = self.markers.iter().map(|m| m.filter.position).collect();
+        let mut candidates: Vec<Candidate> = Vec::new();
+        let mut seen: Vec<Vec<(Point2<f64>, PixelRect)>> = vec![Vec::new(); undecided.len()];
+        for (row, &i) in undecided.iter().enumerate() {
+            let m = &self.markers[i];
+            let side = window_px(m);
+            // The miss may be a manoeuvre (a release): the search opens to the search radius,
+            // and wider while the marker stays unseen, up to the whole frame. The filter takes
+            // the manoeuvre only if a candidate is taken.
+            let wide = m.gate_var + manoeuvre_var(config, side, m.misses, frame_side);
+            let gate_px = (GATE_CHI2 * wide).sqrt().min(2.0 * frame_side);
+            let pred = clamp_into(m.filter.position, width, height);
+            // The quick pass's own measurement competes too (a marker half behind a twig).
+            let mut found: Vec<Measured> = quick[i].iter().map(|q| q.measured).collect();
+            if let Some(t) = &m.template {
+                found.extend(template_candidates(
+                    t,
+                    m,
+                    frame,
+                    pred,
+                    gate_px,
+                    MAX_CANDIDATES,
+                    &mut self.patch,
+                ));
+            } else {
+                let (w, h) = m.size;
+                let reach = gate_px.ceil() as i32 + w.max(h);
+                let region = PixelRect::centered_at(pred, w, h).grown(reach, reach);
+                let mut masks = masks.clone();
+                masks.extend(m.static_masks(region, pred));
+                fill(
+                    &mut self.region,
+                    config,
+                    m,
+                    frame,
+                    self.previous.as_ref(),
+                    depth,
+                    region,
+                    &masks,
+                );
+                let others = sharing_predictions(&self.markers, i, &all);
+                found.extend(
+                    candidates_in(&mut self.region, &mut self.labeler, m, Some(pred), &others)
+                        .into_iter()
+                        .take(MAX_CANDIDATES),
+                );
+            }
+            let mut with_context = Vec::with_capacity(found.len());
+            for c in found {
+                seen[row].push((c.center, c.holds));
+                if c.confidence < config.min_confidence
+                    || (config.exclusive && taken(&self.markers, i, c.center, claimed))
+                {
+                    continue;
+                }
+                let context = m
+                    .context
+                    .as_ref()
+                    .filter(|_| m.context_informative())
+                    .map(|t| t.ncc_near(frame, c.center, &mut self.patch));
+                with_context.push((c, context));
+            }
+            for s in m.score(&with_context, wide) {
+                candidates.push(Candidate {
+                    marker: i,
+                    measured: s.measured,
+                    cost: s.cost,
+                    context: s.context,
+                });
+            }
+        }
+        // Columns: places, so that markers of one colour compete for the same blob.
+        let mut places: Vec<(Point2<f64>, f64)> = Vec::new();
+        let mut column = Vec::with_capacity(candidates.len());
+        for c in &candidates {
+            let side = window_px(&self.markers[c.marker]);
+            let same = places
+                .iter()
+                .position(|(p, s)| (p - c.measured.center).norm() < 0.25 * side.min(*s));
+            column.push(same.unwrap_or_else(|| {
+                places.push((c.measured.center, side));
+                places.len() - 1
+            }));
+        }
+        let rows = undecided.len();
+        let cols = places.len();
+        let mut cost = vec![f64::INFINITY; rows * cols];
+        for (c, &j) in candidates.iter().zip(&column) {
+            if let Some(r) = undecided.iter().position(|&i| i == c.marker) {
+                let slot = &mut cost[r * cols + j];
+                *slot = slot.min(c.cost);
+            }
+        }
+        let assignment = assign(&cost, cols, &vec![UNMATCHED_COST; rows]);
+        if std::env::var("TRACE").is_ok() {
+            for (r, &i) in undecided.iter().enumerate() {
+                let m = &self.markers[i];
+                eprintln!(
+                    "frame {} marker {} misses {} pred ({:.1},{:.1}) gate_var {:.1} -> {:?}",
+                    self.tracks[0].observations.len(),
+                    m.id,
+                    m.misses,
+                    m.filter.position.x,
+                    m.filter.position.y,
+                    m.gate_var,
+                    assignment[r]
+                );
+                for (c, &j) in candidates.iter().zip(&column) {
+                    if c.marker == i {
+                        eprintln!(
+                            "   col {j} at ({:.1},{:.1}) conf {:.2} cost {:.2} ctx {:?}",
+                            c.measured.center.x,
+                            c.measured.center.y,
+                            c.measured.confidence,
+                            c.cost,
+                            c.context
+                        );
+                    }
+                }
+            }
+        }
+        let chosen: Vec<Option<(Measured, Option<f64>)>> = undecided
+            .iter()
+            .zip(&assignment)
+            .map(|(&i, j)| {
+                let j = (*j)?;
+                let best = candidates
+                    .iter()
+                    .zip(&column)
+                    .filter(|(c, col)| c.marker == i && **col == j)
+                    .min_by(|a, b| a.0.cost.total_cmp(&b.0.cost))?;
+                Some((best.0.measured, best.0.context))
+            })
+            .collect();
+        // A marker found far outside its normal gate has manoeuvred: the filter takes the
+        // manoeuvre, so the measurement sets the new velocity.
+        for (&i, pick) in undecided.iter().zip(&chosen) {
+            let m = &mut self.markers[i];
+            if let Some((q, _)) = pick
+                && (q.center - m.filter.position).norm_squared() > GATE_CHI2 * m.gate_var
+            {
+                let side = window_px(m);
+                let sigma = manoeuvre_var(config, side, m.misses, frame_side).sqrt();
+                m.filter.manoeuvre(sigma);
+            }
+        }
+        // What a found marker saw in its gate and was not is a look-alike to remember,
+        // unless it is some marker's place.
+        let places_now: Vec<Point2<f64>> = self
+            .markers
+            .iter()
+            .map(|m| m.filter.position)
+            .chain(claimed.iter().map(|c| c.2))
+            .chain(chosen.iter().flatten().map(|c| c.0.center))
+            .collect();
+        for ((&i, pick), blobs) in undecided.iter().zip(&chosen).zip(seen) {
+            let Some((picked, _)) = pick else { continue };
+            let side = window_px(&self.markers[i]);
+            let near_marker = |p: &Point2<f64>| places_now.iter().any(|q| (q - p).norm() < side);
+            let m = &mut self.markers[i];
+            for (p, bounds) in blobs {
+                if (p - picked.center).norm() > side && !near_marker(&p) {
+                    remember_distractor(m, p, bounds, side);
+                }
+            }
+        }
+        chosen
     }
 
     /// Set a marker's centre in the latest frame by hand (the paper's first remedy); its
@@ -791,12 +1261,11 @@ impl Tracker {
             ));
         }
         let m = &mut self.markers[i];
-        m.motion = Motion {
-            position: center,
-            velocity: Vector2::zeros(),
-        };
+        let side = window_px(m);
+        m.filter = Kalman::new(center, MEASUREMENT_PX, 0.1 * side);
+        m.acceleration_px = ACCELERATION_MIN_PX;
         m.last_center = center;
-        m.coasting = 0;
+        m.misses = 0;
         m.last_status = TrackStatus::Set;
         let observation = Observation {
             center: Some(center),
@@ -836,12 +1305,6 @@ impl Tracker {
     }
 }
 
-impl Motion {
-    fn predict(&self) -> Point2<f64> {
-        self.position + self.velocity
-    }
-}
-
 impl MarkerState {
     /// Whether the surroundings tell this marker apart: they correlate well with
     /// themselves from frame to frame (a textured background, a fork, a target board), not
@@ -850,69 +1313,144 @@ impl MarkerState {
         self.context.is_some() && self.context_level >= CONTEXT_MIN_LEVEL
     }
 
-    /// Record this frame's outcome and update the motion state.
-    fn advance(
+    /// The costs of this marker's candidates (each with its context correlation), scored
+    /// together; candidates outside the wide gate are dropped. A cost is a negative
+    /// log-likelihood relative to a perfect candidate at the prediction:
+    /// - motion: the mixture of the normal gate and, with prior [`MANOEUVRE_PRIOR`], a
+    ///   manoeuvre of variance `wide`;
+    /// - appearance: `-ln(confidence)`, plus the shortfall from the best candidate's
+    ///   confidence in units of how much this marker's own confidence varies from frame to
+    ///   frame (capped), and the same for the surroundings' correlation when they are
+    ///   informative; relative to the best candidate, so that a marker whose look changes as a
+    ///   whole (blur, light) is not locked out;
+    /// - a static look-alike's penalty.
+    fn score(&self, candidates: &[(Measured, Option<f64>)], wide: f64) -> Vec<Scored> {
+        let best_conf = candidates
+            .iter()
+            .map(|c| c.0.confidence)
+            .fold(0.0, f64::max);
+        let best_context = candidates
+            .iter()
+            .filter_map(|c| c.1)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let conf_sigma = self.confidence_var.sqrt().max(CONFIDENCE_SIGMA_MIN);
+        let context_sigma = self.context_var.sqrt().max(CONTEXT_SIGMA_MIN);
+        let informative = self.context_informative();
+        candidates
+            .iter()
+            .filter_map(|&(measured, context)| {
+                let r2 = (measured.center - self.filter.position).norm_squared();
+                if r2 > GATE_CHI2 * wide.max(self.gate_var) {
+                    return None;
+                }
+                let conf = measured.confidence;
+                let appearance = -conf.max(1e-3).ln()
+                    + (0.5 * ((best_conf - conf) / conf_sigma).powi(2)).min(APPEARANCE_CAP);
+                let surroundings = match context {
+                    Some(c) if informative => {
+                        (0.5 * ((best_context - c) / context_sigma).powi(2)).min(CONTEXT_CAP)
+                    }
+                    _ => 0.0,
+                };
+                let penalty = if self.on_distractor(measured.center) {
+                    DISTRACTOR_COST
+                } else {
+                    0.0
+                };
+                Some(Scored {
+                    measured,
+                    context,
+                    cost: motion_cost(r2, self.gate_var, wide)
+                        + appearance
+                        + surroundings
+                        + penalty,
+                })
+            })
+            .collect()
+    }
+
+    /// Whether a context correlation `c` is within what this marker usually shows.
+    fn familiar(&self, c: f64) -> bool {
+        let sigma = self.context_var.sqrt().max(CONTEXT_SIGMA_MIN);
+        c >= self.context_level - CONTEXT_DROP.max(3.0 * sigma)
+    }
+
+    /// Learn how this marker's confidence and context correlation vary (running means and
+    /// variances of the frames it was found in).
+    fn learn_appearance(&mut self, confidence: f64, context: Option<f64>) {
+        let d = confidence - self.confidence_mean;
+        self.confidence_mean += APPEARANCE_RATE * d;
+        self.confidence_var += APPEARANCE_RATE * (d * d - self.confidence_var);
+        if let Some(c) = context {
+            let d = c - self.context_level;
+            self.context_level += APPEARANCE_RATE * d;
+            self.context_var += APPEARANCE_RATE * (d * d - self.context_var);
+        }
+    }
+
+    /// True when `at` is on a static look-alike of this marker.
+    fn on_distractor(&self, at: Point2<f64>) -> bool {
+        let side = window_px(self);
+        self.distractors
+            .iter()
+            .any(|d| d.seen >= 2 && (d.at - at).norm() < (DISTRACTOR_RADIUS * side).max(2.0))
+    }
+
+    /// The boxes of this marker's static look-alikes in `region` that it is not predicted to
+    /// be on: their pixels do not count, so that a marker passing one is not pulled onto it.
+    fn static_masks(&self, region: PixelRect, pred: Point2<f64>) -> Vec<PixelRect> {
+        let (hw, hh) = (self.size.0 / 4, self.size.1 / 4);
+        self.distractors
+            .iter()
+            .filter(|d| d.seen >= 2 && d.bounds.intersect(&region).area() > 0)
+            .filter(|d| {
+                let b = d.bounds.grown(hw, hh);
+                !(pred.x >= f64::from(b.x)
+                    && pred.y >= f64::from(b.y)
+                    && pred.x < b.right() as f64
+                    && pred.y < b.bottom() as f64)
+            })
+            .map(|d| d.bounds)
+            .collect()
+    }
+
+    /// One frame ahead.
+    fn predict(&mut self, config: &TrackerConfig) {
+        match config.motion {
+            MotionModel::Static => {
+                self.filter.stop(0.0);
+                self.filter.predict(self.acceleration_px);
+            }
+            MotionModel::ConstantVelocity { .. } => self.filter.predict(self.acceleration_px),
+        }
+    }
+
+    /// Record a measurement.
+    fn found(
         &mut self,
-        mode: Mode,
+        q: Measured,
         status: TrackStatus,
         config: &TrackerConfig,
         depth: Option<&DepthView<'_>>,
-        (width, height): (u32, u32),
     ) -> Observation {
-        let was_found = self.last_status.found();
-        if status == TrackStatus::Predicted {
-            self.coasting += 1;
-            let pred = clamp_into(self.motion.predict(), width, height);
-            self.motion.position = pred;
-            // A swinging branch turns back: extrapolating a release's speed for frames on end
-            // would run the prediction away from it.
-            self.motion.velocity *= COAST_VELOCITY_DECAY;
-            let lost = self.coasting > config.max_coast_frames;
-            self.last_status = if lost {
-                TrackStatus::Lost
-            } else {
-                TrackStatus::Predicted
-            };
-            return Observation {
-                center: (!lost).then_some(pred),
-                window: mode.window,
-                status: self.last_status,
-                confidence: mode.confidence,
-            };
-        }
-        let z = mode.center;
-        let status = if was_found {
-            status
+        let innovation = (q.center - self.filter.position).norm_squared();
+        self.filter.update(q.center, MEASUREMENT_PX);
+        if let MotionModel::ConstantVelocity {
+            min_acceleration_px,
+        } = config.motion
+        {
+            // The model expects as much change as it has recently seen; a recovery after a
+            // miss says little about the acceleration, and is left out.
+            if self.misses == 0 {
+                let a2 = self.acceleration_px * self.acceleration_px;
+                let next = a2 + ACCELERATION_RATE * (0.5 * innovation - a2);
+                self.acceleration_px = next.sqrt().max(min_acceleration_px);
+            }
         } else {
-            TrackStatus::Recovered
-        };
-        match config.motion {
-            MotionModel::Static => {
-                self.motion.velocity = Vector2::zeros();
-                self.motion.position = z;
-            }
-            MotionModel::ConstantVelocity => {
-                self.motion.velocity = if was_found {
-                    z - self.last_center
-                } else {
-                    Vector2::zeros()
-                };
-                self.motion.position = z;
-            }
-            MotionModel::AlphaBeta { alpha, beta } => {
-                if was_found {
-                    let pred = self.motion.predict();
-                    let r = z - pred;
-                    self.motion.position = pred + r * alpha;
-                    self.motion.velocity += r * beta;
-                } else {
-                    self.motion.position = z;
-                    self.motion.velocity = Vector2::zeros();
-                }
-            }
+            self.filter.stop(0.0);
         }
         if config.window == WindowMode::Adaptive
-            && let Some(m) = mode.moments
+            && let Some(m) = q.moments
             && m.m00 > 0.0
         {
             let (w, h) = Axes::of(&m).window_size();
@@ -923,18 +1461,37 @@ impl MarkerState {
             );
         }
         if let Some(d) = depth
-            && let Some(dm) = window_depth(d, mode.window)
+            && let Some(dm) = window_depth(d, q.window)
         {
             self.depth_m = Some(dm);
         }
-        self.last_center = z;
-        self.coasting = 0;
+        self.last_center = q.center;
+        self.misses = 0;
         self.last_status = status;
         Observation {
-            center: Some(z),
-            window: mode.window,
+            center: Some(q.center),
+            window: q.window,
             status,
-            confidence: mode.confidence,
+            confidence: q.confidence,
+        }
+    }
+
+    /// No measurement this frame: coast, then lose.
+    fn missed(&mut self, config: &TrackerConfig, (width, height): (u32, u32)) -> Observation {
+        self.misses += 1;
+        self.filter.velocity *= COAST_VELOCITY_DECAY;
+        let pred = clamp_into(self.filter.position, width, height);
+        let lost = self.misses > config.max_coast_frames;
+        self.last_status = if lost {
+            TrackStatus::Lost
+        } else {
+            TrackStatus::Predicted
+        };
+        Observation {
+            center: (!lost).then_some(pred),
+            window: PixelRect::centered_at(pred, self.size.0, self.size.1),
+            status: self.last_status,
+            confidence: 0.0,
         }
     }
 }
@@ -942,6 +1499,273 @@ impl MarkerState {
 /// Window size (the larger side) of a marker, pixels.
 fn window_px(m: &MarkerState) -> f64 {
     f64::from(m.size.0.max(m.size.1))
+}
+
+/// The weights of marker `m`'s model over `rect`, with its mask, depth gate and the `masked`
+/// rectangles, and its streak weights against the `previous` frame (recovering tracker, colour
+/// models).
+#[allow(clippy::too_many_arguments)]
+fn fill(
+    region: &mut Region,
+    config: &TrackerConfig,
+    m: &MarkerState,
+    frame: &RgbImage,
+    previous: Option<&RgbImage>,
+    depth: Option<&DepthView<'_>>,
+    rect: PixelRect,
+    masked: &[PixelRect],
+) {
+    let gate = match (config.depth_gate_m, m.depth_m, depth) {
+        (Some(g), Some(dm), Some(d)) => Some((g, dm, *d)),
+        _ => None,
+    };
+    let colour_model = !matches!(config.model, AppearanceModel::Gray { .. });
+    let streak = previous
+        .filter(|_| config.recovery && colour_model)
+        .map(|previous| Streak {
+            previous,
+            colour: m.colour,
+        });
+    let filter = PixelFilter {
+        mask: &m.mask,
+        depth: gate,
+        masked,
+        streak,
+    };
+    region.fill(&config.model, &m.model, frame, rect, &filter);
+}
+
+/// Learn the marker's blob in its first window: threshold, pixel count, width.
+fn learn_blob(m: &mut MarkerState, region: &Region, labeler: &mut Labeler, window: PixelRect) {
+    // The marker's pixels: the heaviest tenth of the window sets the scale.
+    let mut inside: Vec<f32> = Vec::new();
+    let w = window.intersect(&region.rect);
+    for y in w.y..w.bottom() as i32 {
+        for x in w.x..w.right() as i32 {
+            let v = region.weights[region.index(x, y)];
+            if v > 0.0 {
+                inside.push(v);
+            }
+        }
+    }
+    if inside.is_empty() {
+        return;
+    }
+    let k = inside.len() / 10;
+    let top = *inside.select_nth_unstable_by(k, |a, b| b.total_cmp(a)).1;
+    let threshold = (top * BLOB_THRESHOLD).max(1.0);
+    let blobs = labeler.blobs(&region.weights, region.rect, region.rect, threshold, 1);
+    let c = window.center();
+    let best = blobs
+        .iter()
+        .filter(|b| b.bounds.intersect(&window).area() > 0)
+        .min_by(|a, b| (a.centroid - c).norm().total_cmp(&(b.centroid - c).norm()));
+    m.reference.threshold = threshold;
+    if let Some(b) = best {
+        m.reference.pixels = b.pixels as f64;
+        m.reference.pixel_weight = b.mass / b.pixels as f64;
+        m.reference.width_px = b.width_px().max(2.0);
+    } else {
+        m.reference.pixel_weight = f64::from(top);
+    }
+}
+
+/// Mean RGB of the pixels of `window` whose weight is at least `threshold` (the marker's
+/// own), or of the whole window if none is.
+fn mean_colour(frame: &RgbImage, region: &Region, window: PixelRect, threshold: f32) -> [f32; 3] {
+    let w = window.intersect(&region.rect);
+    let (mut sum, mut all, mut n, mut n_all) = ([0.0f64; 3], [0.0f64; 3], 0.0f64, 0.0f64);
+    for y in w.y..w.bottom() as i32 {
+        for x in w.x..w.right() as i32 {
+            let p = frame.get_pixel(x as u32, y as u32).0;
+            let own = region.weights[region.index(x, y)] >= threshold;
+            for c in 0..3 {
+                all[c] += f64::from(p[c]);
+                if own {
+                    sum[c] += f64::from(p[c]);
+                }
+            }
+            n_all += 1.0;
+            if own {
+                n += 1.0;
+            }
+        }
+    }
+    let (s, k) = if n > 0.0 {
+        (sum, n)
+    } else {
+        (all, n_all.max(1.0))
+    };
+    [(s[0] / k) as f32, (s[1] / k) as f32, (s[2] / k) as f32]
+}
+
+/// True when a blob could be the marker: wide as the marker (blur makes a streak longer, not
+/// wider), not longer than a streak can be, with enough of its pixels.
+fn plausible(blob: &Blob, r: &Reference) -> bool {
+    let width = blob.width_px() / r.width_px;
+    let length = blob.length_px() / r.width_px;
+    (BLOB_WIDTH_RANGE[0]..=BLOB_WIDTH_RANGE[1]).contains(&width)
+        && length <= BLOB_MAX_LENGTH
+        && blob.pixels as f64 >= BLOB_MIN_PIXELS * r.pixels
+}
+
+/// How much a blob looks like the marker, 0..=1 (see [`Observation::confidence`]): its
+/// colour (mean weight against the marker's), its width (a wider blob is another object; a
+/// narrower one may be the marker partly covered) and the share of the marker's pixels it
+/// holds.
+fn blob_confidence(blob: &Blob, r: &Reference) -> f64 {
+    let colour = (blob.mass / blob.pixels as f64 / r.pixel_weight).min(1.0);
+    let wider = (blob.width_px() / r.width_px).ln().max(0.0);
+    let shape = (-0.5 * (wider / 0.35).powi(2)).exp();
+    let held = (blob.pixels as f64 / (0.6 * r.pixels)).min(1.0);
+    colour * shape * held
+}
+
+/// The marker-like blobs of the region's weights as measurements (heaviest first), with the
+/// pairs of nearby fragments that make one marker together (a marker cut by a twig). A blob
+/// on which another marker (`others`: predictions of markers found in the last frame) is
+/// predicted as well as this one (`own`) is shared: this marker's candidate is the part
+/// nearer to it.
+fn candidates_in(
+    region: &mut Region,
+    labeler: &mut Labeler,
+    m: &MarkerState,
+    own: Option<Point2<f64>>,
+    others: &[Point2<f64>],
+) -> Vec<Measured> {
+    let min_pixels = (m.reference.pixels * BLOB_MIN_PIXELS).ceil() as usize;
+    let blobs = labeler.blobs(
+        &region.weights,
+        region.rect,
+        region.rect,
+        m.reference.threshold,
+        min_pixels,
+    );
+    let (w, h) = m.size;
+    let on = |p: &Point2<f64>, r: PixelRect| {
+        p.x >= f64::from(r.x)
+            && p.y >= f64::from(r.y)
+            && p.x < r.right() as f64
+            && p.y < r.bottom() as f64
+    };
+    let mut out = Vec::new();
+    for (k, b) in blobs.iter().enumerate() {
+        if out.len() >= MAX_CANDIDATES {
+            break;
+        }
+        let sharing: Vec<Point2<f64>> = others
+            .iter()
+            .filter(|p| on(p, b.bounds.grown(w / 2, h / 2)))
+            .copied()
+            .collect();
+        if let Some(own) = own.filter(|p| !sharing.is_empty() && on(p, b.bounds.grown(w, h))) {
+            let mut centres = vec![own];
+            centres.extend(sharing);
+            let parts = labeler.split(&region.weights, region.rect, b, &centres);
+            if let Some(part) = parts
+                .first()
+                .filter(|p| p.pixels > 0 && plausible(p, &m.reference))
+            {
+                out.push(measured_at(region, m, part));
+            }
+            continue;
+        }
+        if plausible(b, &m.reference) {
+            out.push(measured_at(region, m, b));
+        }
+        // Fragments closer than the marker's width whose union is a whole marker.
+        for c in &blobs[k + 1..] {
+            if (b.centroid - c.centroid).norm() < m.reference.width_px {
+                let u = b.merged(c);
+                if plausible(&u, &m.reference) {
+                    out.push(measured_at(region, m, &u));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A measurement at a blob: its centroid, the window there and its confidence.
+fn measured_at(region: &mut Region, m: &MarkerState, blob: &Blob) -> Measured {
+    let window = PixelRect::centered_at(blob.centroid, m.size.0, m.size.1);
+    let confidence = match &m.model {
+        // The kernel model's colour evidence is the Bhattacharyya coefficient.
+        MarkerModel::Kernel { q, .. } => {
+            let colour =
+                (blob.mass / blob.pixels as f64 / m.reference.pixel_weight).clamp(1e-9, 1.0);
+            region.bhattacharyya(q, blob.centroid, m.size) * blob_confidence(blob, &m.reference)
+                / colour
+        }
+        MarkerModel::Projected { .. } => blob_confidence(blob, &m.reference),
+    };
+    Measured {
+        center: blob.centroid,
+        window,
+        holds: blob.bounds.grown(1, 1),
+        confidence: confidence.clamp(0.0, 1.0),
+        moments: moments_of(region, window),
+    }
+}
+
+/// The gray target's template matches within `radius` of `center` as measurements; the
+/// confidence is the correlation (negative counts as 0).
+fn template_candidates(
+    t: &Template,
+    m: &MarkerState,
+    frame: &RgbImage,
+    center: Point2<f64>,
+    radius: f64,
+    max: usize,
+    scratch: &mut Vec<f32>,
+) -> Vec<Measured> {
+    let (w, h) = m.size;
+    t.search(frame, center, radius, max, scratch)
+        .into_iter()
+        .map(|found| {
+            let window = PixelRect::centered_at(found.center, w, h);
+            Measured {
+                center: found.center,
+                window,
+                holds: window,
+                confidence: found.ncc.max(0.0),
+                moments: None,
+            }
+        })
+        .collect()
+}
+
+/// Moments of `window` and a 10-pixel border (CamShift's size estimate).
+fn moments_of(region: &Region, window: PixelRect) -> Option<Moments> {
+    let g = region.sums(window.grown(ADAPTIVE_BORDER_PX, ADAPTIVE_BORDER_PX));
+    (g[0] > 0.0).then(|| moments_from_f64_sums(g))
+}
+
+/// The mode as the measurement (plain mean-shift).
+fn plain(region: &Region, mode: Mode) -> Measured {
+    Measured {
+        center: mode.center,
+        window: mode.window,
+        holds: mode.window,
+        confidence: mode.confidence,
+        moments: mode.moments.or_else(|| moments_of(region, mode.window)),
+    }
+}
+
+/// The predictions of the markers other than `i` that were found in the last frame: where
+/// a blob must be shared.
+fn sharing_predictions(
+    markers: &[MarkerState],
+    i: usize,
+    predictions: &[Point2<f64>],
+) -> Vec<Point2<f64>> {
+    markers
+        .iter()
+        .zip(predictions)
+        .enumerate()
+        .filter(|(j, (m, _))| *j != i && m.misses == 0)
+        .map(|(_, (_, p))| *p)
+        .collect()
 }
 
 /// True when `at` is on another marker's predicted place: nearer to that marker's prediction
@@ -969,7 +1793,7 @@ fn taken(
 ) -> bool {
     let mine = window_px(&markers[i]);
     claimed.iter().any(|&(j, _, c)| {
-        (c - at).norm() < EXCLUSION_FRACTION * 0.5 * (mine + window_px(&markers[j]))
+        j != i && (c - at).norm() < EXCLUSION_FRACTION * 0.5 * (mine + window_px(&markers[j]))
     })
 }
 
@@ -992,291 +1816,60 @@ fn window_depth(depth: &DepthView<'_>, window: PixelRect) -> Option<f64> {
     Some(values[mid])
 }
 
-/// Compute the marker model's weights over `rect` (clipped to the frame), with depth gating
-/// and the `masked` rectangles zeroed.
-fn fill_region(
-    region: &mut Region,
-    config: &TrackerConfig,
-    marker: &MarkerState,
-    frame: &RgbImage,
-    depth: Option<&DepthView<'_>>,
-    rect: PixelRect,
-    masked: &[PixelRect],
-) {
-    let rect = rect.intersect(&image_rect(frame.width(), frame.height()));
-    region.rect = rect;
-    let area = rect.area() as usize;
-    let gate = match (config.depth_gate_m, marker.depth_m, depth) {
-        (Some(g), Some(dm), Some(d)) => Some((g, dm, d)),
-        _ => None,
+/// Negative log-likelihood of an innovation of squared length `r2` under the motion model's
+/// mixture (no manoeuvre: variance `normal`; a manoeuvre, with prior [`MANOEUVRE_PRIOR`]:
+/// variance `wide`), relative to a zero innovation: 0 at the prediction, growing slowly over
+/// the normal gate and then with the wide one.
+fn motion_cost(r2: f64, normal: f64, wide: f64) -> f64 {
+    let (normal, wide) = (normal.max(1e-9), wide.max(normal).max(1e-9));
+    let a0 = (1.0 - MANOEUVRE_PRIOR).ln() - normal.ln();
+    let b0 = MANOEUVRE_PRIOR.ln() - wide.ln();
+    log_sum_exp(a0, b0) - log_sum_exp(a0 - 0.5 * r2 / normal, b0 - 0.5 * r2 / wide)
+}
+
+fn log_sum_exp(a: f64, b: f64) -> f64 {
+    let m = a.max(b);
+    m + ((a - m).exp() + (b - m).exp()).ln()
+}
+
+/// Variance the gate opens by (pixels²) for a marker with window `side` after `misses`
+/// frames without a measurement: [`TrackerConfig::search_radius_windows`] windows at the
+/// gate's edge on the first, growing linearly while coasting and quadratically once lost,
+/// never past twice the frame.
+fn manoeuvre_var(config: &TrackerConfig, side: f64, misses: usize, frame_side: f64) -> f64 {
+    let sigma = config.search_radius_windows * side / GATE_CHI2.sqrt();
+    let k = misses as f64 + 1.0;
+    let growth = if misses > config.max_coast_frames {
+        k * k
+    } else {
+        k
     };
-    let raw = frame.as_raw();
-    let stride = frame.width() as usize * 3;
-    let is_masked = |x: i32, y: i32| {
-        masked
-            .iter()
-            .any(|r| x >= r.x && y >= r.y && i64::from(x) < r.right() && i64::from(y) < r.bottom())
-    };
-    let gated = |x: i32, y: i32| {
-        gate.is_some_and(|(g, dm, d)| d.at(x, y).is_some_and(|v| (v - dm).abs() > g))
-    };
-    match &marker.model {
-        MarkerModel::Projected { projector } => {
-            region.weights.clear();
-            region.weights.reserve(area);
-            for y in rect.y..rect.bottom() as i32 {
-                let row = &raw[y as usize * stride..];
-                for x in rect.x..rect.right() as i32 {
-                    let k = x as usize * 3;
-                    let rgb = [row[k], row[k + 1], row[k + 2]];
-                    let v = match config.model.features(rgb, &config.hsv_mask) {
-                        Some(f) if !gated(x, y) && !is_masked(x, y) => {
-                            f32::from(projector.value_of(&f))
-                        }
-                        _ => 0.0,
-                    };
-                    region.weights.push(v);
-                }
-            }
-        }
-        MarkerModel::Kernel { hist, q } => {
-            region.bins.clear();
-            region.bins.reserve(area);
-            region.p.clear();
-            region.p.resize(q.len(), 0.0);
-            for y in rect.y..rect.bottom() as i32 {
-                let row = &raw[y as usize * stride..];
-                for x in rect.x..rect.right() as i32 {
-                    let k = x as usize * 3;
-                    let rgb = [row[k], row[k + 1], row[k + 2]];
-                    let bin = match hist.bin_of(&rgb) {
-                        Some(b) if !gated(x, y) && !is_masked(x, y) => b as u32,
-                        _ => NO_BIN,
-                    };
-                    region.bins.push(bin);
-                }
-            }
-        }
-    }
+    (sigma * sigma * growth).min((2.0 * frame_side).powi(2))
 }
 
-impl Region {
-    fn index(&self, x: i32, y: i32) -> usize {
-        (y - self.rect.y) as usize * self.rect.width as usize + (x - self.rect.x) as usize
-    }
-
-    /// Sums of weight, weight·x, weight·y and second orders over `window ∩ region`
-    /// (absolute pixel coordinates).
-    fn sums(&self, window: PixelRect) -> [f64; 6] {
-        let w = window.intersect(&self.rect);
-        let mut s = [0.0; 6];
-        if w.is_empty() {
-            return s;
+/// Remember a look-alike at `p`: seen again where it was (within [`STATIC_PX`]), it counts
+/// once more; moved, it starts over there. The oldest is forgotten past the limit.
+fn remember_distractor(m: &mut MarkerState, p: Point2<f64>, bounds: PixelRect, side: f64) {
+    if let Some(d) = m
+        .distractors
+        .iter_mut()
+        .find(|d| (d.at - p).norm() < (DISTRACTOR_RADIUS * side).max(2.0))
+    {
+        if (d.at - p).norm() <= STATIC_PX {
+            d.seen = d.seen.saturating_add(1);
+        } else {
+            d.seen = 1;
         }
-        for y in w.y..w.bottom() as i32 {
-            let start = self.index(w.x, y);
-            let row = &self.weights[start..start + w.width as usize];
-            let (mut r0, mut rx, mut rxx) = (0.0f64, 0.0f64, 0.0f64);
-            for (i, &v) in row.iter().enumerate() {
-                let v = f64::from(v);
-                let x = f64::from(w.x) + i as f64;
-                r0 += v;
-                rx += v * x;
-                rxx += v * x * x;
-            }
-            let yf = f64::from(y);
-            s[0] += r0;
-            s[1] += rx;
-            s[2] += r0 * yf;
-            s[3] += rxx;
-            s[4] += rx * yf;
-            s[5] += r0 * yf * yf;
-        }
-        s
+        d.at = p;
+        d.bounds = bounds;
+        return;
     }
-
-    fn mass(&self, window: PixelRect) -> f64 {
-        self.sums(window)[0]
+    if m.distractors.len() >= MAX_DISTRACTORS {
+        m.distractors.remove(0);
     }
-}
-
-/// Mean-shift from `start` with a window of `size`, then the weighted centroid and the
-/// confidence of the converged window.
-fn locate(
-    region: &mut Region,
-    config: &TrackerConfig,
-    marker: &MarkerState,
-    start: Point2<f64>,
-    size: (i32, i32),
-) -> Mode {
-    match &marker.model {
-        MarkerModel::Projected { .. } => {
-            let max_iter = config.criteria.max_iterations.unwrap_or(100).max(1);
-            let eps = config.criteria.epsilon_px.unwrap_or(1.0).max(0.0);
-            let mut window = PixelRect::centered_at(start, size.0, size.1);
-            let mut center = start;
-            for _ in 0..max_iter {
-                let s = region.sums(window);
-                if s[0] <= 0.0 {
-                    break;
-                }
-                let c = Point2::new(s[1] / s[0], s[2] / s[0]);
-                let next = PixelRect::centered_at(c, size.0, size.1);
-                let moved = (c - center).norm();
-                center = c;
-                if next == window {
-                    break;
-                }
-                window = next;
-                if moved < eps {
-                    break;
-                }
-            }
-            let s = region.sums(window);
-            if s[0] > 0.0 {
-                center = Point2::new(s[1] / s[0], s[2] / s[0]);
-            }
-            let grown = window.grown(ADAPTIVE_BORDER_PX, ADAPTIVE_BORDER_PX);
-            let g = region.sums(grown);
-            // Central moments do not depend on the origin of the coordinates.
-            let moments = (g[0] > 0.0).then(|| moments_from_f64_sums(g));
-            Mode {
-                center,
-                window,
-                confidence: (s[0] / marker.reference_mass).min(1.0),
-                moments,
-            }
-        }
-        MarkerModel::Kernel { q, .. } => kernel_locate(region, q, start, size),
-    }
-}
-
-/// Comaniciu–Ramesh–Meer mean-shift with the Epanechnikov kernel over the window's
-/// inscribed ellipse; the confidence is the Bhattacharyya coefficient at the end.
-fn kernel_locate(region: &mut Region, q: &[f64], start: Point2<f64>, size: (i32, i32)) -> Mode {
-    let (w, h) = (size.0.max(1) as usize, size.1.max(1) as usize);
-    let mut y0 = start;
-    let mut rho = 0.0;
-    for _ in 0..KERNEL_MAX_ITERATIONS {
-        let (next, r) = kernel_step(region, q, y0, w, h);
-        rho = r;
-        let Some(next) = next else { break };
-        let moved = (next - y0).norm();
-        y0 = next;
-        if moved < KERNEL_EPSILON_PX {
-            rho = kernel_step(region, q, y0, w, h).1;
-            break;
-        }
-    }
-    Mode {
-        center: y0,
-        window: PixelRect::centered_at(y0, size.0, size.1),
-        confidence: rho.clamp(0.0, 1.0),
-        moments: None,
-    }
-}
-
-/// One kernel mean-shift step at `y0`: the new position (None when the kernel holds no
-/// counted pixel) and the Bhattacharyya coefficient at `y0`.
-fn kernel_step(
-    region: &mut Region,
-    q: &[f64],
-    y0: Point2<f64>,
-    w: usize,
-    h: usize,
-) -> (Option<Point2<f64>>, f64) {
-    let window = PixelRect::centered_at(y0, w as i32, h as i32).intersect(&region.rect);
-    if window.is_empty() {
-        return (None, 0.0);
-    }
-    let hx = (w as f64 * 0.5).max(0.5);
-    let hy = (h as f64 * 0.5).max(0.5);
-    region.p.iter_mut().for_each(|v| *v = 0.0);
-    let mut total = 0.0;
-    let mut pixels = Vec::with_capacity(window.area() as usize);
-    for y in window.y..window.bottom() as i32 {
-        for x in window.x..window.right() as i32 {
-            let bin = region.bins[region.index(x, y)];
-            if bin == NO_BIN {
-                continue;
-            }
-            let dx = (f64::from(x) - y0.x) / hx;
-            let dy = (f64::from(y) - y0.y) / hy;
-            let r2 = dx * dx + dy * dy;
-            if r2 >= 1.0 {
-                continue;
-            }
-            region.p[bin as usize] += 1.0 - r2;
-            total += 1.0 - r2;
-            pixels.push((x, y, bin, 1.0 - r2));
-        }
-    }
-    if total <= 0.0 {
-        return (None, 0.0);
-    }
-    let mut rho = 0.0;
-    for (&p, &qv) in region.p.iter().zip(q) {
-        if p > 0.0 && qv > 0.0 {
-            rho += (p / total * qv).sqrt();
-        }
-    }
-    let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
-    for (x, y, bin, k) in pixels {
-        let p = region.p[bin as usize] / total;
-        // sqrt(q/p) times the kernel profile: the spatially weighted mean converges to the
-        // Bhattacharyya maximum on uniform blobs, where the flat mean stalls short of it.
-        let weight = (q[bin as usize] / p).sqrt() * k;
-        sw += weight;
-        sx += weight * f64::from(x);
-        sy += weight * f64::from(y);
-    }
-    if sw <= 0.0 {
-        return (None, rho);
-    }
-    (Some(Point2::new(sx / sw, sy / sw)), rho)
-}
-
-/// The recovery search around `pred`: the quick pass's result, and starts at the prediction,
-/// the last centre, and four directions at half and full `radius`, each with a window twice
-/// the size, refined with the normal one. Candidates `judge` rejects (`None`: other markers'
-/// places) are skipped; for the others it gives the context correlation when the marker's
-/// surroundings are informative. The best by confidence, times a Gaussian of the distance
-/// from the prediction (`sigma`: half the search radius before any widening), times the
-/// context term, wins; it is returned with its correlation.
-fn search(
-    region: &mut Region,
-    config: &TrackerConfig,
-    marker: &MarkerState,
-    (pred, radius, sigma): (Point2<f64>, f64, f64),
-    quick: Mode,
-    mut judge: impl FnMut(Point2<f64>) -> Option<Option<f64>>,
-) -> Option<(Mode, Option<f64>)> {
-    let (w, h) = marker.size;
-    let big = (w * SEARCH_WINDOW_SCALE, h * SEARCH_WINDOW_SCALE);
-    let mut starts = vec![pred, marker.last_center];
-    for fraction in [0.5, 1.0] {
-        let d = radius * fraction;
-        for (dx, dy) in [(-d, 0.0), (d, 0.0), (0.0, -d), (0.0, d)] {
-            starts.push(Point2::new(pred.x + dx, pred.y + dy));
-        }
-    }
-    let mut best: Option<(f64, Mode, Option<f64>)> = None;
-    let candidates = starts.into_iter().map(|start| {
-        let coarse = locate(region, config, marker, start, big);
-        locate(region, config, marker, coarse.center, (w, h))
+    m.distractors.push(Distractor {
+        at: p,
+        bounds,
+        seen: 1,
     });
-    for fine in std::iter::once(quick).chain(candidates) {
-        let Some(context) = judge(fine.center) else {
-            continue;
-        };
-        let d = (fine.center - pred).norm() / sigma;
-        let familiarity = context.map_or(1.0, |c| {
-            ((c - marker.context_level).min(0.0) / CONTEXT_SHARPNESS).exp()
-        });
-        let score = fine.confidence * (-0.5 * d * d).exp() * familiarity;
-        if best.as_ref().is_none_or(|(s, _, _)| score > *s) {
-            best = Some((score, fine, context));
-        }
-    }
-    best.map(|(_, m, c)| (m, c))
 }

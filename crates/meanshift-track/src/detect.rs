@@ -1,0 +1,411 @@
+//! Candidate blobs of a marker's appearance: the pixels of a weight map (back-projection) at or
+//! above a threshold, grouped into 8-connected components (two-pass labelling with union–find,
+//! Rosenfeld and Pfaltz 1966). Each blob's weighted centroid is a measurement: for a marker
+//! smeared into a streak by motion blur it is the streak's centre.
+
+use nalgebra::Point2;
+
+use crate::rect::PixelRect;
+
+/// One connected component of above-threshold pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Blob {
+    /// Pixels in the component.
+    pub(crate) pixels: usize,
+    /// Sum of their weights.
+    pub(crate) mass: f64,
+    /// Weighted centroid (image coordinates).
+    pub(crate) centroid: Point2<f64>,
+    /// Bounding box (image coordinates).
+    pub(crate) bounds: PixelRect,
+    /// Weighted second central moments `[xx, xy, yy]` (pixels²).
+    pub(crate) spread: [f64; 3],
+    /// Its label in the labeler's last run (for [`Labeler::split`]).
+    label: u32,
+}
+
+impl Blob {
+    /// The two blobs as one (pooled moments): the fragments of a marker split by a twig.
+    pub(crate) fn merged(&self, other: &Blob) -> Blob {
+        let m = self.mass + other.mass;
+        if m <= 0.0 {
+            return *self;
+        }
+        let c = Point2::from(
+            (self.centroid.coords * self.mass + other.centroid.coords * other.mass) / m,
+        );
+        let part = |b: &Blob| {
+            let d = b.centroid - c;
+            [
+                b.mass * (b.spread[0] + d.x * d.x),
+                b.mass * (b.spread[1] + d.x * d.y),
+                b.mass * (b.spread[2] + d.y * d.y),
+            ]
+        };
+        let (a, b) = (part(self), part(other));
+        let (x0, y0) = (
+            self.bounds.x.min(other.bounds.x),
+            self.bounds.y.min(other.bounds.y),
+        );
+        let x1 = self.bounds.right().max(other.bounds.right()) as i32;
+        let y1 = self.bounds.bottom().max(other.bounds.bottom()) as i32;
+        Blob {
+            pixels: self.pixels + other.pixels,
+            mass: m,
+            centroid: c,
+            bounds: PixelRect::new(x0, y0, x1 - x0, y1 - y0),
+            spread: [(a[0] + b[0]) / m, (a[1] + b[1]) / m, (a[2] + b[2]) / m],
+            label: self.label,
+        }
+    }
+
+    /// Length of the blob's major axis, four standard deviations (pixels): a disc of diameter
+    /// `d` gives `d`, a streak its length.
+    pub(crate) fn length_px(&self) -> f64 {
+        let [a, b, c] = self.spread;
+        let half = 0.5 * (a + c);
+        let root = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+        4.0 * (half + root).max(0.0).sqrt()
+    }
+
+    /// Length of the minor axis, four standard deviations (pixels).
+    pub(crate) fn width_px(&self) -> f64 {
+        let [a, b, c] = self.spread;
+        let half = 0.5 * (a + c);
+        let root = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+        4.0 * (half - root).max(0.0).sqrt()
+    }
+}
+
+/// Scratch of the labelling, kept between calls so that no call allocates once warm.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct Labeler {
+    /// The area labelled in the last run (image coordinates).
+    area: PixelRect,
+    labels: Vec<u32>,
+    parent: Vec<u32>,
+    sums: Vec<[f64; 7]>,
+    bounds: Vec<[i32; 4]>,
+}
+
+const NONE: u32 = u32::MAX;
+
+fn find(parent: &mut [u32], mut a: u32) -> u32 {
+    // Path halving; the loop ends because parents point to smaller or equal labels.
+    while parent[a as usize] != a {
+        let p = parent[a as usize];
+        parent[a as usize] = parent[p as usize];
+        a = p;
+    }
+    a
+}
+
+fn union(parent: &mut [u32], a: u32, b: u32) -> u32 {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+    parent[hi as usize] = lo;
+    lo
+}
+
+impl Labeler {
+    /// The components of `weights` (row-major over `rect`) at or above `threshold` whose
+    /// pixels lie inside `within` (image coordinates), with at least `min_pixels` pixels,
+    /// heaviest first.
+    pub(crate) fn blobs(
+        &mut self,
+        weights: &[f32],
+        rect: PixelRect,
+        within: PixelRect,
+        threshold: f32,
+        min_pixels: usize,
+    ) -> Vec<Blob> {
+        let area = within.intersect(&rect);
+        if area.is_empty() || weights.len() != rect.area() as usize {
+            return Vec::new();
+        }
+        self.area = area;
+        let (w, h) = (area.width as usize, area.height as usize);
+        let stride = rect.width as usize;
+        let offset = (area.y - rect.y) as usize * stride + (area.x - rect.x) as usize;
+        let at = |x: usize, y: usize| weights[offset + y * stride + x];
+        self.labels.clear();
+        self.labels.resize(w * h, NONE);
+        self.parent.clear();
+        for y in 0..h {
+            for x in 0..w {
+                if at(x, y) < threshold {
+                    continue;
+                }
+                let mut label = NONE;
+                // Neighbours already visited: left, and the three above.
+                let join = |l: u32, label: &mut u32, parent: &mut Vec<u32>| {
+                    if l == NONE {
+                        return;
+                    }
+                    *label = if *label == NONE {
+                        find(parent, l)
+                    } else {
+                        union(parent, *label, l)
+                    };
+                };
+                if x > 0 {
+                    join(self.labels[y * w + x - 1], &mut label, &mut self.parent);
+                }
+                if y > 0 {
+                    let row = (y - 1) * w;
+                    if x > 0 {
+                        join(self.labels[row + x - 1], &mut label, &mut self.parent);
+                    }
+                    join(self.labels[row + x], &mut label, &mut self.parent);
+                    if x + 1 < w {
+                        join(self.labels[row + x + 1], &mut label, &mut self.parent);
+                    }
+                }
+                if label == NONE {
+                    label = self.parent.len() as u32;
+                    self.parent.push(label);
+                }
+                self.labels[y * w + x] = label;
+            }
+        }
+        let n = self.parent.len();
+        self.sums.clear();
+        self.sums.resize(n, [0.0; 7]);
+        self.bounds.clear();
+        self.bounds
+            .resize(n, [i32::MAX, i32::MAX, i32::MIN, i32::MIN]);
+        for y in 0..h {
+            for x in 0..w {
+                let l = self.labels[y * w + x];
+                if l == NONE {
+                    continue;
+                }
+                let root = find(&mut self.parent, l) as usize;
+                let v = f64::from(at(x, y));
+                let (xi, yi) = (area.x + x as i32, area.y + y as i32);
+                let (xf, yf) = (f64::from(xi), f64::from(yi));
+                let s = &mut self.sums[root];
+                s[0] += 1.0;
+                s[1] += v;
+                s[2] += v * xf;
+                s[3] += v * yf;
+                s[4] += v * xf * xf;
+                s[5] += v * xf * yf;
+                s[6] += v * yf * yf;
+                let b = &mut self.bounds[root];
+                b[0] = b[0].min(xi);
+                b[1] = b[1].min(yi);
+                b[2] = b[2].max(xi);
+                b[3] = b[3].max(yi);
+            }
+        }
+        let mut out = Vec::new();
+        for (root, (s, b)) in self.sums.iter().zip(&self.bounds).enumerate() {
+            if self.parent[root] != root as u32
+                || (s[0] as usize) < min_pixels.max(1)
+                || s[1] <= 0.0
+            {
+                continue;
+            }
+            let (cx, cy) = (s[2] / s[1], s[3] / s[1]);
+            out.push(Blob {
+                pixels: s[0] as usize,
+                mass: s[1],
+                centroid: Point2::new(cx, cy),
+                bounds: PixelRect::new(b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1),
+                spread: [
+                    s[4] / s[1] - cx * cx,
+                    s[5] / s[1] - cx * cy,
+                    s[6] / s[1] - cy * cy,
+                ],
+                label: root as u32,
+            });
+        }
+        out.sort_by(|a, b| b.mass.total_cmp(&a.mass));
+        out
+    }
+
+    /// Share the pixels of `blob` (from the last [`Labeler::blobs`] run on the same
+    /// `weights` and `rect`) among `centres` by weighted 2-means (Lloyd's iterations started
+    /// at the centres): two markers of one colour that touch or overlap make one blob, and
+    /// each gets the part nearer to it. One part per centre, possibly empty (no pixels).
+    pub(crate) fn split(
+        &mut self,
+        weights: &[f32],
+        rect: PixelRect,
+        blob: &Blob,
+        centres: &[Point2<f64>],
+    ) -> Vec<Blob> {
+        /// Lloyd's iterations; a few settle two discs.
+        const ROUNDS: usize = 4;
+        let area = self.area;
+        let box_ = blob.bounds.intersect(&area);
+        let mut means: Vec<Point2<f64>> = centres.to_vec();
+        let mut parts = vec![[0.0f64; 7]; centres.len()];
+        let mut bounds = vec![[i32::MAX, i32::MAX, i32::MIN, i32::MIN]; centres.len()];
+        if box_.is_empty() || centres.is_empty() || weights.len() != rect.area() as usize {
+            return Vec::new();
+        }
+        let stride = rect.width as usize;
+        let w = area.width as usize;
+        for round in 0..ROUNDS {
+            parts.iter_mut().for_each(|p| *p = [0.0; 7]);
+            bounds
+                .iter_mut()
+                .for_each(|b| *b = [i32::MAX, i32::MAX, i32::MIN, i32::MIN]);
+            for y in box_.y..box_.bottom() as i32 {
+                for x in box_.x..box_.right() as i32 {
+                    let l = self.labels[(y - area.y) as usize * w + (x - area.x) as usize];
+                    if l == NONE || find(&mut self.parent, l) != blob.label {
+                        continue;
+                    }
+                    let v =
+                        f64::from(weights[(y - rect.y) as usize * stride + (x - rect.x) as usize]);
+                    let p = Point2::new(f64::from(x), f64::from(y));
+                    let k = means
+                        .iter()
+                        .enumerate()
+                        .min_by(|a, b| {
+                            (a.1 - p)
+                                .norm_squared()
+                                .total_cmp(&(b.1 - p).norm_squared())
+                        })
+                        .map_or(0, |(k, _)| k);
+                    let s = &mut parts[k];
+                    s[0] += 1.0;
+                    s[1] += v;
+                    s[2] += v * p.x;
+                    s[3] += v * p.y;
+                    s[4] += v * p.x * p.x;
+                    s[5] += v * p.x * p.y;
+                    s[6] += v * p.y * p.y;
+                    let b = &mut bounds[k];
+                    b[0] = b[0].min(x);
+                    b[1] = b[1].min(y);
+                    b[2] = b[2].max(x);
+                    b[3] = b[3].max(y);
+                }
+            }
+            if round + 1 < ROUNDS {
+                for (m, s) in means.iter_mut().zip(&parts) {
+                    if s[1] > 0.0 {
+                        *m = Point2::new(s[2] / s[1], s[3] / s[1]);
+                    }
+                }
+            }
+        }
+        parts
+            .iter()
+            .zip(&bounds)
+            .map(|(s, b)| {
+                if s[1] <= 0.0 {
+                    return Blob {
+                        pixels: 0,
+                        mass: 0.0,
+                        centroid: blob.centroid,
+                        bounds: PixelRect::default(),
+                        spread: [0.0; 3],
+                        label: blob.label,
+                    };
+                }
+                let (cx, cy) = (s[2] / s[1], s[3] / s[1]);
+                Blob {
+                    pixels: s[0] as usize,
+                    mass: s[1],
+                    centroid: Point2::new(cx, cy),
+                    bounds: PixelRect::new(b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1),
+                    spread: [
+                        s[4] / s[1] - cx * cx,
+                        s[5] / s[1] - cx * cy,
+                        s[6] / s[1] - cy * cy,
+                    ],
+                    label: blob.label,
+                }
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finds_components_with_their_centroids_and_shapes() {
+        let rect = PixelRect::new(10, 20, 40, 20);
+        let mut weights = vec![0.0f32; 800];
+        let mut put = |x: i32, y: i32, v: f32| {
+            weights[((y - 20) * 40 + (x - 10)) as usize] = v;
+        };
+        // A 4x4 square at (12..16, 22..26), a diagonal streak of 10 pixels, a single pixel.
+        for y in 22..26 {
+            for x in 12..16 {
+                put(x, y, 200.0);
+            }
+        }
+        for k in 0..10 {
+            put(25 + k, 25 + k / 2, 100.0);
+        }
+        put(45, 38, 255.0);
+        let mut l = Labeler::default();
+        let blobs = l.blobs(&weights, rect, rect, 50.0, 2);
+        assert_eq!(blobs.len(), 2, "{blobs:?}");
+        let square = blobs[0];
+        assert_eq!(square.pixels, 16);
+        assert!((square.centroid - Point2::new(13.5, 23.5)).norm() < 1e-9);
+        assert_eq!(square.bounds, PixelRect::new(12, 22, 4, 4));
+        let streak = blobs[1];
+        assert_eq!(streak.pixels, 10);
+        assert!(streak.length_px() > 3.0 * streak.width_px(), "{streak:?}");
+        // Restricted to a part of the region.
+        let part = l.blobs(&weights, rect, PixelRect::new(10, 20, 10, 10), 50.0, 1);
+        assert_eq!(part.len(), 1);
+        assert_eq!(part[0].pixels, 16);
+        // Merging pools the moments: two halves make the whole square.
+        let halves = l.blobs(&weights, rect, PixelRect::new(10, 20, 4, 10), 50.0, 1)[0]
+            .merged(&l.blobs(&weights, rect, PixelRect::new(14, 20, 6, 10), 50.0, 1)[0]);
+        assert!((halves.centroid - square.centroid).norm() < 1e-9);
+        assert!((halves.spread[0] - square.spread[0]).abs() < 1e-9);
+        assert_eq!(halves.bounds, square.bounds);
+        // Two touching squares make one blob; split by their centres, each gets its own.
+        let mut two = vec![0.0f32; 200];
+        for y in 2..8 {
+            for x in 2..14 {
+                two[y * 20 + x] = 1.0;
+            }
+        }
+        let r2 = PixelRect::new(0, 0, 20, 10);
+        let one = l.blobs(&two, r2, r2, 0.5, 1);
+        assert_eq!(one.len(), 1);
+        let parts = l.split(
+            &two,
+            r2,
+            &one[0],
+            &[Point2::new(4.0, 5.0), Point2::new(12.0, 4.0)],
+        );
+        assert!(
+            (parts[0].centroid - Point2::new(4.5, 4.5)).norm() < 1e-9,
+            "{parts:?}"
+        );
+        assert!(
+            (parts[1].centroid - Point2::new(10.5, 4.5)).norm() < 1e-9,
+            "{parts:?}"
+        );
+        assert_eq!(parts[0].pixels + parts[1].pixels, 72);
+        // A U shape is one component (labels merged from both arms).
+        let mut u = vec![0.0f32; 100];
+        for y in 0..10 {
+            u[y * 10 + 2] = 1.0;
+            u[y * 10 + 7] = 1.0;
+        }
+        for x in 2..8 {
+            u[90 + x] = 1.0;
+        }
+        let r = PixelRect::new(0, 0, 10, 10);
+        assert_eq!(l.blobs(&u, r, r, 0.5, 1).len(), 1);
+        assert!(
+            l.blobs(&u, r, PixelRect::new(50, 50, 3, 3), 0.5, 1)
+                .is_empty()
+        );
+    }
+}

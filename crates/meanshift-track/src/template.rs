@@ -1,0 +1,464 @@
+//! Gray templates compared by zero-mean normalised cross-correlation (NCC): a marker's own
+//! window, which locates black-and-white targets that a histogram cannot (a white square on a
+//! white wall), and its surroundings, which tell look-alike markers apart (the branch they
+//! sit on, a fork, the background).
+//!
+//! [`Template::search`] finds the best matches within a radius coarse to fine: an NCC map on
+//! a grid two or four times coarser, its local maxima, each refined at full resolution and to
+//! a sub-pixel centre by a parabola through the correlations of the neighbouring pixels.
+
+use image::RgbImage;
+use nalgebra::{Point2, Vector2};
+
+use crate::hsv::rgb_to_gray;
+
+/// Fewest overlapping pixels for a meaningful correlation.
+const MIN_PIXELS: usize = 16;
+/// Least share of the template's pixels that must overlap the frame: a template mostly off
+/// the frame correlates with anything.
+const MIN_OVERLAP: f64 = 0.6;
+/// Coarse grid cells must hold at least this many template pixels a side.
+const MIN_COARSE_SIDE: usize = 8;
+/// Coarse peaks refined at full resolution, at least (a fine target seen half a cell off
+/// correlates less on the coarse grid than a look-alike aligned with it).
+const MIN_REFINED: usize = 8;
+/// A coarse local maximum below this correlation is not a candidate.
+const MIN_PEAK_NCC: f64 = 0.3;
+
+/// A gray patch centred on a marker, `NaN` where it fell outside the frame.
+#[derive(Debug, Clone)]
+pub(crate) struct Template {
+    width: usize,
+    height: usize,
+    values: Vec<f32>,
+    /// Where the marker's centre lies relative to the patch's centre pixel (sub-pixel).
+    offset: Vector2<f64>,
+    /// The template averaged over `scale` x `scale` cells, for the coarse search.
+    coarse: Vec<f32>,
+    scale: usize,
+}
+
+/// A match of a template: the marker's centre there and the correlation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Match {
+    pub(crate) center: Point2<f64>,
+    pub(crate) ncc: f64,
+}
+
+/// Pixel centre nearest to `center`, as integers.
+fn anchor(center: Point2<f64>) -> (i64, i64) {
+    let finite = |v: f64| if v.is_finite() { v.round() } else { 0.0 };
+    (
+        finite(center.x).clamp(-1e9, 1e9) as i64,
+        finite(center.y).clamp(-1e9, 1e9) as i64,
+    )
+}
+
+/// The gray values of the `width` x `height` patch centred on pixel `(cx, cy)`, `NaN`
+/// outside the frame.
+fn patch_at(
+    frame: &RgbImage,
+    (cx, cy): (i64, i64),
+    width: usize,
+    height: usize,
+    out: &mut Vec<f32>,
+) {
+    out.clear();
+    let x0 = cx - (width / 2) as i64;
+    let y0 = cy - (height / 2) as i64;
+    let (fw, fh) = (i64::from(frame.width()), i64::from(frame.height()));
+    let raw = frame.as_raw();
+    for y in y0..y0 + height as i64 {
+        let inside_row = (0..fh).contains(&y);
+        for x in x0..x0 + width as i64 {
+            if inside_row && (0..fw).contains(&x) {
+                let k = ((y * fw + x) * 3) as usize;
+                out.push(f32::from(rgb_to_gray([raw[k], raw[k + 1], raw[k + 2]])));
+            } else {
+                out.push(f32::NAN);
+            }
+        }
+    }
+}
+
+/// Zero-mean NCC of two equally sized patches over the pixels known in both; 0 when either
+/// has no contrast there, or fewer than [`MIN_PIXELS`] or [`MIN_OVERLAP`] of them overlap.
+fn ncc(a: &[f32], b: &[f32]) -> f64 {
+    let (mut n, mut sa, mut sb, mut saa, mut sbb, mut sab) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for (&x, &y) in a.iter().zip(b) {
+        if x.is_nan() || y.is_nan() {
+            continue;
+        }
+        let (x, y) = (f64::from(x), f64::from(y));
+        n += 1;
+        sa += x;
+        sb += y;
+        saa += x * x;
+        sbb += y * y;
+        sab += x * y;
+    }
+    if n < MIN_PIXELS || (n as f64) < MIN_OVERLAP * a.len() as f64 {
+        return 0.0;
+    }
+    let nf = n as f64;
+    let va = saa - sa * sa / nf;
+    let vb = sbb - sb * sb / nf;
+    if va <= 1e-9 || vb <= 1e-9 {
+        return 0.0;
+    }
+    ((sab - sa * sb / nf) / (va * vb).sqrt()).clamp(-1.0, 1.0)
+}
+
+/// `values` (`width` x `height`) averaged over `scale` x `scale` cells (NaN if any is).
+fn coarsen(values: &[f32], width: usize, height: usize, scale: usize) -> Vec<f32> {
+    let (cw, ch) = (width / scale, height / scale);
+    let mut out = Vec::with_capacity(cw * ch);
+    for j in 0..ch {
+        for i in 0..cw {
+            let mut s = 0.0f32;
+            for y in j * scale..(j + 1) * scale {
+                for x in i * scale..(i + 1) * scale {
+                    s += values[y * width + x];
+                }
+            }
+            out.push(s / (scale * scale) as f32);
+        }
+    }
+    out
+}
+
+impl Template {
+    /// The `width` x `height` patch centred at `center`.
+    pub(crate) fn learn(
+        frame: &RgbImage,
+        center: Point2<f64>,
+        width: usize,
+        height: usize,
+    ) -> Self {
+        let (width, height) = (width.max(1), height.max(1));
+        let a = anchor(center);
+        let mut values = Vec::with_capacity(width * height);
+        patch_at(frame, a, width, height, &mut values);
+        let scale = if width.min(height) >= 4 * MIN_COARSE_SIDE {
+            4
+        } else if width.min(height) >= 2 * MIN_COARSE_SIDE {
+            2
+        } else {
+            1
+        };
+        let coarse = coarsen(&values, width, height, scale);
+        Self {
+            width,
+            height,
+            offset: Vector2::new(center.x - a.0 as f64, center.y - a.1 as f64),
+            values,
+            coarse,
+            scale,
+        }
+    }
+
+    /// NCC (-1..=1) between the template and the patch at `center`, over the pixels inside
+    /// the frame in both (0 without contrast or overlap).
+    #[cfg(test)]
+    fn ncc(&self, frame: &RgbImage, center: Point2<f64>, scratch: &mut Vec<f32>) -> f64 {
+        patch_at(
+            frame,
+            anchor(center - self.offset),
+            self.width,
+            self.height,
+            scratch,
+        );
+        ncc(&self.values, scratch)
+    }
+
+    /// The best NCC within one pixel of `center` (a centre a pixel off loses much of a small
+    /// target's correlation).
+    pub(crate) fn ncc_near(
+        &self,
+        frame: &RgbImage,
+        center: Point2<f64>,
+        scratch: &mut Vec<f32>,
+    ) -> f64 {
+        let (cx, cy) = anchor(center - self.offset);
+        let mut best = f64::NEG_INFINITY;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                patch_at(frame, (cx + dx, cy + dy), self.width, self.height, scratch);
+                best = best.max(ncc(&self.values, scratch));
+            }
+        }
+        best
+    }
+
+    /// Blend the patch at `center` into the template: `t <- (1 - rate) t + rate p`, so that
+    /// slow changes (a branch turning, the light) are followed. Pixels known in only one of
+    /// the two take the known value.
+    pub(crate) fn update(
+        &mut self,
+        frame: &RgbImage,
+        center: Point2<f64>,
+        rate: f32,
+        scratch: &mut Vec<f32>,
+    ) {
+        patch_at(
+            frame,
+            anchor(center - self.offset),
+            self.width,
+            self.height,
+            scratch,
+        );
+        for (t, &p) in self.values.iter_mut().zip(scratch.iter()) {
+            *t = match (t.is_nan(), p.is_nan()) {
+                (false, false) => *t + rate * (p - *t),
+                (true, _) => p,
+                (false, true) => *t,
+            };
+        }
+        self.coarse = coarsen(&self.values, self.width, self.height, self.scale);
+    }
+
+    /// The best matches (at most `max`, best first) whose centres lie within `radius_px` of
+    /// `center`: local maxima of a coarse NCC map, each refined at full resolution to a
+    /// sub-pixel centre.
+    pub(crate) fn search(
+        &self,
+        frame: &RgbImage,
+        center: Point2<f64>,
+        radius_px: f64,
+        max: usize,
+        scratch: &mut Vec<f32>,
+    ) -> Vec<Match> {
+        // A search closer than two coarse cells is done at full resolution.
+        let s = if radius_px < 2.0 * self.scale as f64 {
+            1
+        } else {
+            self.scale
+        };
+        let (c0x, c0y) = anchor(center - self.offset);
+        let r = (radius_px.max(0.0) / s as f64).ceil().min(4096.0) as i64;
+        let mut coarse_peaks: Vec<(f64, i64, i64)> = Vec::new();
+        {
+            // The frame's gray cells under every coarse position of the template.
+            let (cw, ch) = (self.width / s, self.height / s);
+            let coarse: &[f32] = if s == self.scale {
+                &self.coarse
+            } else {
+                &self.values
+            };
+            let span = 2 * r as usize + 1;
+            let (gw, gh) = (span + cw, span + ch);
+            let gx0 = c0x - (self.width / 2) as i64 - r * s as i64;
+            let gy0 = c0y - (self.height / 2) as i64 - r * s as i64;
+            let (fw, fh) = (i64::from(frame.width()), i64::from(frame.height()));
+            let raw = frame.as_raw();
+            let mut grid = vec![f32::NAN; gw * gh];
+            for j in 0..gh {
+                for i in 0..gw {
+                    let (x0, y0) = (gx0 + (i * s) as i64, gy0 + (j * s) as i64);
+                    if x0 < 0 || y0 < 0 || x0 + s as i64 > fw || y0 + s as i64 > fh {
+                        continue;
+                    }
+                    let mut sum = 0.0f32;
+                    for y in y0..y0 + s as i64 {
+                        for x in x0..x0 + s as i64 {
+                            let k = ((y * fw + x) * 3) as usize;
+                            sum += f32::from(rgb_to_gray([raw[k], raw[k + 1], raw[k + 2]]));
+                        }
+                    }
+                    grid[j * gw + i] = sum / (s * s) as f32;
+                }
+            }
+            let mut map = vec![f64::NEG_INFINITY; span * span];
+            let mut cell = Vec::with_capacity(cw * ch);
+            for v in 0..span {
+                for u in 0..span {
+                    let (du, dv) = (u as i64 - r, v as i64 - r);
+                    if ((du * du + dv * dv) as f64) > (r as f64 + 0.5).powi(2) {
+                        continue;
+                    }
+                    cell.clear();
+                    for j in 0..ch {
+                        cell.extend_from_slice(&grid[(v + j) * gw + u..(v + j) * gw + u + cw]);
+                    }
+                    map[v * span + u] = ncc(coarse, &cell);
+                }
+            }
+            for v in 0..span {
+                for u in 0..span {
+                    let m = map[v * span + u];
+                    if m < MIN_PEAK_NCC {
+                        continue;
+                    }
+                    let mut peak = true;
+                    'n: for dv in -1i64..=1 {
+                        for du in -1i64..=1 {
+                            let (uu, vv) = (u as i64 + du, v as i64 + dv);
+                            if (du, dv) == (0, 0)
+                                || uu < 0
+                                || vv < 0
+                                || uu >= span as i64
+                                || vv >= span as i64
+                            {
+                                continue;
+                            }
+                            if map[vv as usize * span + uu as usize] > m {
+                                peak = false;
+                                break 'n;
+                            }
+                        }
+                    }
+                    if peak {
+                        coarse_peaks.push((
+                            m,
+                            c0x + (u as i64 - r) * s as i64,
+                            c0y + (v as i64 - r) * s as i64,
+                        ));
+                    }
+                }
+            }
+            coarse_peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
+            coarse_peaks.truncate((max * 2).max(MIN_REFINED));
+        }
+        let mut out: Vec<Match> = Vec::new();
+        for &(_, px, py) in &coarse_peaks {
+            let reach = s as i64;
+            let mut best = (f64::NEG_INFINITY, px, py);
+            for dy in -reach..=reach {
+                for dx in -reach..=reach {
+                    patch_at(frame, (px + dx, py + dy), self.width, self.height, scratch);
+                    let v = ncc(&self.values, scratch);
+                    if v > best.0 {
+                        best = (v, px + dx, py + dy);
+                    }
+                }
+            }
+            let (v, bx, by) = best;
+            if !v.is_finite() {
+                continue;
+            }
+            let mut at = |x: i64, y: i64| {
+                patch_at(frame, (x, y), self.width, self.height, scratch);
+                ncc(&self.values, scratch)
+            };
+            let sub = |l: f64, c: f64, r: f64| {
+                let d = l - 2.0 * c + r;
+                if d < -1e-12 {
+                    (0.5 * (l - r) / d).clamp(-0.5, 0.5)
+                } else {
+                    0.0
+                }
+            };
+            let (l, rr) = (at(bx - 1, by), at(bx + 1, by));
+            let (u, d) = (at(bx, by - 1), at(bx, by + 1));
+            let c = Point2::new(bx as f64 + sub(l, v, rr), by as f64 + sub(u, v, d)) + self.offset;
+            if (c - center).norm() > radius_px + 1.5 {
+                continue;
+            }
+            if out
+                .iter()
+                .all(|m| (m.center - c).norm() > 0.5 * self.width.min(self.height) as f64)
+            {
+                out.push(Match { center: c, ncc: v });
+            }
+        }
+        out.sort_by(|a, b| b.ncc.total_cmp(&a.ncc));
+        out.truncate(max);
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(offset: u32) -> RgbImage {
+        // A bright square with a dark bar on its left at `offset`, and a plain bright square
+        // 30 px to the right.
+        RgbImage::from_fn(100, 40, |x, y| {
+            let in_a = (offset..offset + 8).contains(&x) && (16..24).contains(&y);
+            let bar = (offset.saturating_sub(6)..offset.saturating_sub(2)).contains(&x)
+                && (10..30).contains(&y);
+            let in_b = (offset + 30..offset + 38).contains(&x) && (16..24).contains(&y);
+            let v = if in_a || in_b {
+                230
+            } else if bar {
+                20
+            } else {
+                90
+            };
+            image::Rgb([v, v, v])
+        })
+    }
+
+    #[test]
+    fn correlation_tells_look_alike_markers_apart_by_their_surroundings() {
+        let frame = scene(20);
+        let t = Template::learn(&frame, Point2::new(23.5, 19.5), 24, 24);
+        let mut s = Vec::new();
+        let own = t.ncc(&frame, Point2::new(23.5, 19.5), &mut s);
+        let other = t.ncc(&frame, Point2::new(53.5, 19.5), &mut s);
+        assert!((own - 1.0).abs() < 1e-9, "{own}");
+        assert!(other < 0.9, "{other}");
+        // The same scene shifted: the marker is found where it moved.
+        let moved = scene(40);
+        assert!((t.ncc(&moved, Point2::new(43.5, 19.5), &mut s) - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn search_finds_the_target_coarse_to_fine_with_a_sub_pixel_centre() {
+        // A textured 36 px target (its template is searched on a 4x coarser grid).
+        let target = |dx: f64, dy: f64| {
+            RgbImage::from_fn(200, 120, move |x, y| {
+                let (u, v) = (f64::from(x) - 60.0 - dx, f64::from(y) - 50.0 - dy);
+                let inside = u.abs() < 18.0 && v.abs() < 18.0;
+                let g = if inside {
+                    let r2 = u * u + v * v;
+                    180.0 + 60.0 * (-r2 / 40.0).exp() - 120.0 * (-(u - 8.0).powi(2) / 20.0).exp()
+                } else {
+                    // Faint hashed texture.
+                    90.0 + f64::from((x * 7 + y * 13) % 11)
+                };
+                let g = g.clamp(0.0, 255.0) as u8;
+                image::Rgb([g, g, g])
+            })
+        };
+        let t = Template::learn(&target(0.0, 0.0), Point2::new(60.0, 50.0), 36, 36);
+        assert_eq!(t.scale, 4);
+        let mut s = Vec::new();
+        let moved = target(37.4, -12.6);
+        let found = t.search(&moved, Point2::new(60.0, 50.0), 60.0, 3, &mut s);
+        assert!(!found.is_empty());
+        let best = found[0];
+        assert!(
+            (best.center - Point2::new(97.4, 37.4)).norm() < 0.6,
+            "{found:?}"
+        );
+        assert!(best.ncc > 0.95, "{found:?}");
+        // Outside the radius it is not found.
+        let near = t.search(&moved, Point2::new(60.0, 50.0), 10.0, 3, &mut s);
+        assert!(
+            near.iter()
+                .all(|m| (m.center - Point2::new(60.0, 50.0)).norm() <= 11.5)
+        );
+    }
+
+    #[test]
+    fn patches_past_the_border_and_flat_patches_are_handled() {
+        let frame = scene(20);
+        let mut t = Template::learn(&frame, Point2::new(2.0, 2.0), 24, 24);
+        let mut s = Vec::new();
+        let v = t.ncc(&frame, Point2::new(2.0, 2.0), &mut s);
+        assert!(v.is_finite());
+        let flat = RgbImage::from_pixel(100, 40, image::Rgb([50, 50, 50]));
+        assert_eq!(t.ncc(&flat, Point2::new(50.0, 20.0), &mut s), 0.0);
+        // Far outside: no overlap.
+        assert_eq!(t.ncc(&frame, Point2::new(-500.0, -500.0), &mut s), 0.0);
+        assert!(
+            t.search(&frame, Point2::new(-5000.0, 1e12), 30.0, 2, &mut s)
+                .is_empty()
+        );
+        // Updating from a patch inside fills the unknown pixels.
+        t.update(&frame, Point2::new(50.0, 20.0), 0.5, &mut s);
+        assert!(t.values.iter().all(|v| !v.is_nan()));
+    }
+}
