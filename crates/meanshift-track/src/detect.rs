@@ -110,7 +110,9 @@ fn union(parent: &mut [u32], a: u32, b: u32) -> u32 {
 impl Labeler {
     /// The components of `weights` (row-major over `rect`) at or above `threshold` whose
     /// pixels lie inside `within` (image coordinates), with at least `min_pixels` pixels,
-    /// heaviest first.
+    /// heaviest first. Pixels up to `gap` pixels apart (Chebyshev distance; 1 is plain
+    /// 8-connectivity) belong to one component: a marker in a projection image is a cluster
+    /// of splats with holes between them.
     pub(crate) fn blobs(
         &mut self,
         weights: &[f32],
@@ -118,6 +120,7 @@ impl Labeler {
         within: PixelRect,
         threshold: f32,
         min_pixels: usize,
+        gap: usize,
     ) -> Vec<Blob> {
         let area = within.intersect(&rect);
         if area.is_empty() || weights.len() != rect.area() as usize {
@@ -137,7 +140,6 @@ impl Labeler {
                     continue;
                 }
                 let mut label = NONE;
-                // Neighbours already visited: left, and the three above.
                 let join = |l: u32, label: &mut u32, parent: &mut Vec<u32>| {
                     if l == NONE {
                         return;
@@ -148,17 +150,15 @@ impl Labeler {
                         union(parent, *label, l)
                     };
                 };
-                if x > 0 {
-                    join(self.labels[y * w + x - 1], &mut label, &mut self.parent);
+                // Neighbours already visited within the gap: to the left on this row, and
+                // the rows above.
+                for dx in 1..=gap.max(1).min(x) {
+                    join(self.labels[y * w + x - dx], &mut label, &mut self.parent);
                 }
-                if y > 0 {
-                    let row = (y - 1) * w;
-                    if x > 0 {
-                        join(self.labels[row + x - 1], &mut label, &mut self.parent);
-                    }
-                    join(self.labels[row + x], &mut label, &mut self.parent);
-                    if x + 1 < w {
-                        join(self.labels[row + x + 1], &mut label, &mut self.parent);
+                for dy in 1..=gap.max(1).min(y) {
+                    let row = (y - dy) * w;
+                    for xx in x.saturating_sub(gap.max(1))..(x + gap.max(1) + 1).min(w) {
+                        join(self.labels[row + xx], &mut label, &mut self.parent);
                     }
                 }
                 if label == NONE {
@@ -223,6 +223,63 @@ impl Labeler {
         }
         out.sort_by(|a, b| b.mass.total_cmp(&a.mass));
         out
+    }
+
+    /// The centroid of `blob` (from the last [`Labeler::blobs`] run on the same `weights` and
+    /// `rect`) over every weight in its box grown by a pixel and in `window` that belongs to
+    /// it, to no component, or to a piece of fewer than `pieces` pixels: the pixels just under
+    /// the threshold at its edge and the small pieces around it count too, which steadies
+    /// the centre of a marker whose outline flickers and breaks up (a splatted projection
+    /// image). The blob's own centroid if there is nothing to weigh.
+    pub(crate) fn edge_centroid(
+        &mut self,
+        weights: &[f32],
+        rect: PixelRect,
+        blob: &Blob,
+        window: PixelRect,
+        pieces: usize,
+    ) -> Point2<f64> {
+        let area = self.area;
+        let b = blob.bounds.grown(1, 1);
+        let (x0, y0) = (b.x.min(window.x), b.y.min(window.y));
+        let x1 = b.right().max(window.right()) as i32;
+        let y1 = b.bottom().max(window.bottom()) as i32;
+        let box_ = PixelRect::new(x0, y0, x1 - x0, y1 - y0).intersect(&area);
+        if box_.is_empty() || weights.len() != rect.area() as usize {
+            return blob.centroid;
+        }
+        let stride = rect.width as usize;
+        let w = area.width as usize;
+        let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
+        for y in box_.y..box_.bottom() as i32 {
+            for x in box_.x..box_.right() as i32 {
+                let in_blob_box =
+                    x >= b.x && y >= b.y && i64::from(x) < b.right() && i64::from(y) < b.bottom();
+                let in_window = x >= window.x
+                    && y >= window.y
+                    && i64::from(x) < window.right()
+                    && i64::from(y) < window.bottom();
+                let l = self.labels[(y - area.y) as usize * w + (x - area.x) as usize];
+                let keep = if l == NONE {
+                    in_blob_box
+                } else {
+                    let root = find(&mut self.parent, l);
+                    root == blob.label
+                        || (in_window && (self.sums[root as usize][0] as usize) < pieces)
+                };
+                if !keep {
+                    continue;
+                }
+                let v = f64::from(weights[(y - rect.y) as usize * stride + (x - rect.x) as usize]);
+                sw += v;
+                sx += v * f64::from(x);
+                sy += v * f64::from(y);
+            }
+        }
+        if sw <= 0.0 {
+            return blob.centroid;
+        }
+        Point2::new(sx / sw, sy / sw)
     }
 
     /// Share the pixels of `blob` (from the last [`Labeler::blobs`] run on the same
@@ -348,7 +405,7 @@ mod tests {
         }
         put(45, 38, 255.0);
         let mut l = Labeler::default();
-        let blobs = l.blobs(&weights, rect, rect, 50.0, 2);
+        let blobs = l.blobs(&weights, rect, rect, 50.0, 2, 1);
         assert_eq!(blobs.len(), 2, "{blobs:?}");
         let square = blobs[0];
         assert_eq!(square.pixels, 16);
@@ -358,12 +415,12 @@ mod tests {
         assert_eq!(streak.pixels, 10);
         assert!(streak.length_px() > 3.0 * streak.width_px(), "{streak:?}");
         // Restricted to a part of the region.
-        let part = l.blobs(&weights, rect, PixelRect::new(10, 20, 10, 10), 50.0, 1);
+        let part = l.blobs(&weights, rect, PixelRect::new(10, 20, 10, 10), 50.0, 1, 1);
         assert_eq!(part.len(), 1);
         assert_eq!(part[0].pixels, 16);
         // Merging pools the moments: two halves make the whole square.
-        let halves = l.blobs(&weights, rect, PixelRect::new(10, 20, 4, 10), 50.0, 1)[0]
-            .merged(&l.blobs(&weights, rect, PixelRect::new(14, 20, 6, 10), 50.0, 1)[0]);
+        let halves = l.blobs(&weights, rect, PixelRect::new(10, 20, 4, 10), 50.0, 1, 1)[0]
+            .merged(&l.blobs(&weights, rect, PixelRect::new(14, 20, 6, 10), 50.0, 1, 1)[0]);
         assert!((halves.centroid - square.centroid).norm() < 1e-9);
         assert!((halves.spread[0] - square.spread[0]).abs() < 1e-9);
         assert_eq!(halves.bounds, square.bounds);
@@ -375,7 +432,7 @@ mod tests {
             }
         }
         let r2 = PixelRect::new(0, 0, 20, 10);
-        let one = l.blobs(&two, r2, r2, 0.5, 1);
+        let one = l.blobs(&two, r2, r2, 0.5, 1, 1);
         assert_eq!(one.len(), 1);
         let parts = l.split(
             &two,
@@ -402,10 +459,19 @@ mod tests {
             u[90 + x] = 1.0;
         }
         let r = PixelRect::new(0, 0, 10, 10);
-        assert_eq!(l.blobs(&u, r, r, 0.5, 1).len(), 1);
+        assert_eq!(l.blobs(&u, r, r, 0.5, 1, 1).len(), 1);
         assert!(
-            l.blobs(&u, r, PixelRect::new(50, 50, 3, 3), 0.5, 1)
+            l.blobs(&u, r, PixelRect::new(50, 50, 3, 3), 0.5, 1, 1)
                 .is_empty()
         );
+        // Two squares 2 px apart are one blob with a gap of 2, two with plain connectivity.
+        let mut pair = vec![0.0f32; 100];
+        for y in 3..6 {
+            for x in [1usize, 2, 3, 6, 7, 8] {
+                pair[y * 10 + x] = 1.0;
+            }
+        }
+        assert_eq!(l.blobs(&pair, r, r, 0.5, 1, 1).len(), 2);
+        assert_eq!(l.blobs(&pair, r, r, 0.5, 1, 3).len(), 1);
     }
 }

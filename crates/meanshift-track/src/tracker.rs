@@ -95,6 +95,19 @@ const MAX_DISTRACTORS: usize = 32;
 const STATIC_PX: f64 = 1.5;
 /// Border of CamShift's size estimate around the window (OpenCV's `TOLERANCE`).
 const ADAPTIVE_BORDER_PX: i32 = 10;
+/// Blobs of fewer pixels are noise, not pieces of a marker.
+const FRAGMENT_MIN_PIXELS: usize = 3;
+/// A pixel no brighter than this in every channel is a hole (no data).
+const HOLE_LEVEL: u8 = 2;
+/// Share of holes around a marker above which its blob bridges 2-pixel gaps.
+const HOLES_SPARSE: f64 = 0.06;
+/// Share of holes above which it bridges 3-pixel gaps (a splatted projection image).
+const HOLES_SPLATTED: f64 = 0.15;
+/// Largest gap (pixels) tried between a marker's pixels on the first frame.
+const MAX_GAP_PX: usize = 4;
+/// The marker is one blob when the blob nearest the window's centre holds this share of the
+/// window's blob weight.
+const ONE_BLOB_SHARE: f64 = 0.8;
 /// Blob pixels are those whose weight is at least this share of the marker's typical pixel
 /// weight.
 const BLOB_THRESHOLD: f32 = 0.35;
@@ -429,6 +442,9 @@ struct Reference {
     pixels: f64,
     /// Minor axis of the marker's blob (pixels): its width, which motion blur keeps.
     width_px: f64,
+    /// Largest gap between a marker's pixels (holes, splats) that still makes one blob: the
+    /// least that made the marker one blob on the first frame (1 is 8-connectivity).
+    gap: usize,
 }
 
 /// A place where a marker's look-alike was seen and turned down.
@@ -641,7 +657,11 @@ impl Tracker {
             &config.hsv_mask,
             config.background_weighting,
         )?;
-        let mask = marker_mask(frame, w, &config.model, &config.hsv_mask);
+        let mask = if std::env::var("DBG_NOMASK").is_ok() {
+            config.hsv_mask
+        } else {
+            marker_mask(frame, w, &config.model, &config.hsv_mask)
+        };
         let center = w.center();
         let side = f64::from(w.width.max(w.height));
         let mut state = MarkerState {
@@ -659,6 +679,7 @@ impl Tracker {
                 threshold: 255.0 * BLOB_THRESHOLD,
                 pixels: w.area() as f64 * 0.5,
                 width_px: side * 0.8,
+                gap: 1,
             },
             depth_m: None,
             misses: 0,
@@ -688,6 +709,7 @@ impl Tracker {
         );
         state.reference.mass = self.region.mass(w).max(1.0);
         learn_blob(&mut state, &self.region, &mut self.labeler, w);
+        state.reference.gap = state.reference.gap.max(hole_gap(frame, w));
         state.colour = mean_colour(frame, &self.region, w, state.reference.threshold);
         let mode = self.region.locate(
             &state.model,
@@ -907,6 +929,7 @@ impl Tracker {
                         status
                     };
                     let o = m.found(q, status, &self.config, depth);
+
                     m.learn_appearance(q.confidence, context);
                     if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
                         t.update(frame, q.center, CONTEXT_RATE, &mut self.patch);
@@ -1521,7 +1544,7 @@ fn fill(
     };
     let colour_model = !matches!(config.model, AppearanceModel::Gray { .. });
     let streak = previous
-        .filter(|_| config.recovery && colour_model)
+        .filter(|_| config.recovery && colour_model && std::env::var("DBG_NOSTREAK").is_err())
         .map(|previous| Streak {
             previous,
             colour: m.colour,
@@ -1554,12 +1577,41 @@ fn learn_blob(m: &mut MarkerState, region: &Region, labeler: &mut Labeler, windo
     let k = inside.len() / 10;
     let top = *inside.select_nth_unstable_by(k, |a, b| b.total_cmp(a)).1;
     let threshold = (top * BLOB_THRESHOLD).max(1.0);
-    let blobs = labeler.blobs(&region.weights, region.rect, region.rect, threshold, 1);
     let c = window.center();
-    let best = blobs
-        .iter()
-        .filter(|b| b.bounds.intersect(&window).area() > 0)
-        .min_by(|a, b| (a.centroid - c).norm().total_cmp(&(b.centroid - c).norm()));
+    // The least gap that makes the marker's pixels in its window one blob.
+    let mut best = None;
+    for gap in 1..=MAX_GAP_PX {
+        let blobs = labeler.blobs(&region.weights, region.rect, region.rect, threshold, 1, gap);
+        let inside: Vec<(f64, &Blob)> = blobs
+            .iter()
+            .map(|b| {
+                let part =
+                    b.bounds.intersect(&window).area() as f64 / b.bounds.area().max(1) as f64;
+                (b.mass * part, b)
+            })
+            .filter(|(w, _)| *w > 0.0)
+            .collect();
+        let total: f64 = inside.iter().map(|(w, _)| w).sum();
+        let main = inside
+            .iter()
+            .min_by(|a, b| {
+                (a.1.centroid - c)
+                    .norm()
+                    .total_cmp(&(b.1.centroid - c).norm())
+            })
+            .map(|(w, b)| (*w, **b));
+        if let Some((w, b)) = main {
+            best = Some((gap, b));
+            if w >= ONE_BLOB_SHARE * total {
+                break;
+            }
+        }
+    }
+    if let Some((gap, _)) = best {
+        m.reference.gap = gap;
+    }
+
+    let best = best.map(|(_, b)| b);
     m.reference.threshold = threshold;
     if let Some(b) = best {
         m.reference.pixels = b.pixels as f64;
@@ -1567,6 +1619,34 @@ fn learn_blob(m: &mut MarkerState, region: &Region, labeler: &mut Labeler, windo
         m.reference.width_px = b.width_px().max(2.0);
     } else {
         m.reference.pixel_weight = f64::from(top);
+    }
+}
+
+/// The gap a marker's blob must bridge where the image has holes (pixels with no data,
+/// black, as a projection image where no point projected): around `window` (a window on
+/// every side), more than [`HOLES_SPARSE`] holes need 2 pixels, more than [`HOLES_SPLATTED`]
+/// need 3 (splats with holes between them).
+fn hole_gap(frame: &RgbImage, window: PixelRect) -> usize {
+    let around = window
+        .grown(window.width, window.height)
+        .intersect(&image_rect(frame.width(), frame.height()));
+    let (mut holes, mut all) = (0usize, 0usize);
+    for y in around.y..around.bottom() as i32 {
+        for x in around.x..around.right() as i32 {
+            let p = frame.get_pixel(x as u32, y as u32).0;
+            all += 1;
+            if p.iter().all(|&c| c <= HOLE_LEVEL) {
+                holes += 1;
+            }
+        }
+    }
+    let share = holes as f64 / all.max(1) as f64;
+    if share > HOLES_SPLATTED {
+        3
+    } else if share > HOLES_SPARSE {
+        2
+    } else {
+        1
     }
 }
 
@@ -1633,14 +1713,15 @@ fn candidates_in(
     own: Option<Point2<f64>>,
     others: &[Point2<f64>],
 ) -> Vec<Measured> {
-    let min_pixels = (m.reference.pixels * BLOB_MIN_PIXELS).ceil() as usize;
     let blobs = labeler.blobs(
         &region.weights,
         region.rect,
         region.rect,
         m.reference.threshold,
-        min_pixels,
+        FRAGMENT_MIN_PIXELS,
+        m.reference.gap,
     );
+
     let (w, h) = m.size;
     let on = |p: &Point2<f64>, r: PixelRect| {
         p.x >= f64::from(r.x)
@@ -1671,7 +1752,12 @@ fn candidates_in(
             continue;
         }
         if plausible(b, &m.reference) {
-            out.push(measured_at(region, m, b));
+            let mut steady = *b;
+            let window = PixelRect::centered_at(b.centroid, m.size.0, m.size.1);
+            let pieces = (m.reference.pixels * BLOB_MIN_PIXELS).ceil() as usize;
+            steady.centroid =
+                labeler.edge_centroid(&region.weights, region.rect, b, window, pieces);
+            out.push(measured_at(region, m, &steady));
         }
         // Fragments closer than the marker's width whose union is a whole marker.
         for c in &blobs[k + 1..] {
