@@ -1,10 +1,13 @@
 //! Criterion benches of meanshift-track on 512x424 frames (the Kinect V2 depth size, the
-//! paper's projection image): the tracker per frame, and the OpenCV-style pipeline (whole-frame
-//! HSV + back-projection + meanShift) it replaces.
+//! paper's projection image): the tracker per frame, the tracker over a whole stress sequence
+//! with releases and losses, the whole-frame primitives (HSV + back-projection into reused
+//! buffers), and the OpenCV-style pipeline (whole-frame HSV + back-projection + meanShift) it
+//! replaces. OpenCV's figures on the same frames: `crates/meanshift-track/eval/stress_opencv.py`.
 #![allow(missing_docs, clippy::expect_used)] // bench harness: a failure should stop it
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
+use treemocap::meanshift_track::stress::{Condition, EVALUATION_SEEDS, StressConfig, StressScene};
 use treemocap::meanshift_track::synthetic::{SequenceConfig, generate};
 use treemocap::meanshift_track::{
     BackProjector, ChannelOrder, ChannelRange, Histogram, HistogramSpec, HsvImage, ImageView,
@@ -57,6 +60,48 @@ fn bench(c: &mut Criterion) {
             black_box(mean_shift(&prob, seq.inits[0].window, TermCriteria::default()).expect("ok"))
         })
     });
+
+    // Whole-frame primitives into reused buffers (no allocation per call).
+    let mut hsv = HsvImage::new(1, 1);
+    let mut prob = image::GrayImage::new(1, 1);
+    group.bench_function("whole_frame_hsv_into_backproject_into_512x424", |b| {
+        b.iter(|| {
+            hsv.from_image_into(frame, ChannelOrder::Rgb);
+            projector
+                .project_into(ImageView::from(&hsv), &mut prob)
+                .expect("projects");
+            black_box(prob.as_raw()[0])
+        })
+    });
+    group.finish();
+
+    // A whole Kinect-style stress sequence (the first evaluation seed): 8 markers, a release
+    // with whole-frame blur, jumps, holes, look-alikes, a loss or two. Divide by the
+    // marker-frames printed here for the cost per marker-frame.
+    let scene = StressScene::new(&StressConfig::condition(
+        Condition::KinectStyle,
+        EVALUATION_SEEDS.start,
+    ))
+    .expect("valid preset");
+    let frames: Vec<_> = (0..scene.frames())
+        .map(|f| scene.frame(f).expect("in range"))
+        .collect();
+    let marker_frames = (frames.len() - 1) * scene.markers().len();
+    let mut group = c.benchmark_group("meanshift_track_stress");
+    group.sample_size(10);
+    group.bench_function(
+        format!("tracker_kinect_style_sequence_{marker_frames}_marker_frames"),
+        |b| {
+            b.iter(|| {
+                let mut t = Tracker::new(TrackerConfig::default(), &frames[0], None, scene.inits())
+                    .expect("valid");
+                for f in &frames[1..] {
+                    t.update(f, None).expect("same size");
+                }
+                black_box(t.frames())
+            })
+        },
+    );
     group.finish();
 }
 

@@ -15,6 +15,12 @@ use crate::view::ImageView;
 pub struct BackProjector {
     hist: Histogram,
     bin_value: Vec<u8>,
+    /// Per histogram dimension: the channel read and each channel value's bin offset, with
+    /// values outside the range sent past the end of `bin_value` (see `padded`).
+    offsets: Vec<(usize, [u32; 256])>,
+    /// `bin_value` followed by zeros, long enough that any sum of offsets lands in it:
+    /// a pixel with a value out of range reads a zero without a branch.
+    padded: Vec<u8>,
 }
 
 impl BackProjector {
@@ -30,12 +36,28 @@ impl BackProjector {
             ));
         }
         let scale = scale as f32;
-        let bin_value = hist
+        let bin_value: Vec<u8> = hist
             .values()
             .iter()
             .map(|&v| saturate_u8(v * scale))
             .collect();
-        Ok(Self { hist, bin_value })
+        // Bins number at most 2^24 (the spec's limit), so `dims * total` fits in u32.
+        let total = bin_value.len();
+        let dims = hist.spec().dims();
+        let offsets = hist.offset_tables(total as u32);
+        let mut padded = bin_value.clone();
+        padded.resize(total * dims + 1, 0);
+        Ok(Self {
+            hist,
+            bin_value,
+            offsets,
+            padded,
+        })
+    }
+
+    /// The 8-bit back-projection value of each bin.
+    pub(crate) fn bin_values(&self) -> &[u8] {
+        &self.bin_value
     }
 
     /// The histogram.
@@ -62,13 +84,59 @@ impl BackProjector {
             return Ok(());
         }
         let width = image.width() as usize;
+        let channels = image.channels();
+        let (x0, x1) = (region.x as usize, region.right() as usize);
+        let src = image.data();
         let dst: &mut [u8] = out;
         for y in region.y as usize..region.bottom() as usize {
-            for x in region.x as usize..region.right() as usize {
-                dst[y * width + x] = self.value_at(&image, x, y);
-            }
+            let row = y * width;
+            let pixels = &src[(row + x0) * channels..(row + x1) * channels];
+            self.project_row(pixels, channels, &mut dst[row + x0..row + x1]);
         }
         Ok(())
+    }
+
+    /// Back-project a whole image into `out`, reusing its buffer: no allocation when `out`
+    /// already has the image's size (reshaped otherwise). For per-frame use.
+    ///
+    /// # Errors
+    /// [`TrackError::ChannelCount`] when the image lacks a histogram channel.
+    pub fn project_into(&self, image: ImageView<'_>, out: &mut GrayImage) -> Result<()> {
+        self.hist.check_channels(&image)?;
+        if out.dimensions() != (image.width(), image.height()) {
+            *out = GrayImage::new(image.width(), image.height());
+        }
+        let channels = image.channels();
+        self.project_row(image.data(), channels, out);
+        Ok(())
+    }
+
+    /// One run of pixels: table lookups only, one copy of the loop per dimension count.
+    fn project_row(&self, pixels: &[u8], channels: usize, out: &mut [u8]) {
+        let table = self.padded.as_slice();
+        match self.offsets.as_slice() {
+            [(c0, t0)] => {
+                for (p, d) in pixels.chunks_exact(channels).zip(out.iter_mut()) {
+                    *d = table[t0[usize::from(p[*c0])] as usize];
+                }
+            }
+            [(c0, t0), (c1, t1)] => {
+                for (p, d) in pixels.chunks_exact(channels).zip(out.iter_mut()) {
+                    let k = t0[usize::from(p[*c0])] + t1[usize::from(p[*c1])];
+                    *d = table[k as usize];
+                }
+            }
+            _ => {
+                for (p, d) in pixels.chunks_exact(channels).zip(out.iter_mut()) {
+                    let k: u32 = self
+                        .offsets
+                        .iter()
+                        .map(|(c, t)| t[usize::from(p[*c])])
+                        .sum();
+                    *d = table[k as usize];
+                }
+            }
+        }
     }
 
     /// Back-project a whole image (OpenCV's `calcBackProject`).
@@ -77,12 +145,12 @@ impl BackProjector {
     /// [`TrackError::ChannelCount`] when the image lacks a histogram channel.
     pub fn project(&self, image: ImageView<'_>) -> Result<GrayImage> {
         let mut out = GrayImage::new(image.width(), image.height());
-        self.project_region(image, image.rect(), &mut out)?;
+        self.project_into(image, &mut out)?;
         Ok(out)
     }
 
     /// The back-projection value of one pixel (indices in range, channels checked).
-    #[inline]
+    #[cfg(test)]
     pub(crate) fn value_at(&self, image: &ImageView<'_>, x: usize, y: usize) -> u8 {
         self.hist
             .bin_at(image, x, y)
@@ -129,6 +197,39 @@ mod tests {
         assert_eq!(saturate_u8(-3.0), 0);
         assert_eq!(saturate_u8(300.0), 255);
         assert_eq!(saturate_u8(f32::NAN), 0);
+    }
+
+    #[test]
+    fn table_projection_equals_the_bin_lookup_in_every_dimension_count() {
+        let img = image::RgbImage::from_fn(23, 11, |x, y| {
+            image::Rgb([(x * 11) as u8, (y * 23) as u8, ((x * y * 7) % 256) as u8])
+        });
+        let view = ImageView::from(&img);
+        let specs = [
+            HistogramSpec::hue(16),
+            HistogramSpec::hue_saturation(30, 32),
+            HistogramSpec::rgb(8),
+        ];
+        for mut spec in specs {
+            // A narrower range than the values present, so that some pixels fall outside.
+            spec.ranges[0] = [20.0, 160.0];
+            let mut h = Histogram::new(spec).expect("valid");
+            for (k, v) in h.values_mut().iter_mut().enumerate() {
+                *v = ((k * 37) % 300) as f32;
+            }
+            let bp = BackProjector::new(h, 0.9).expect("finite");
+            let mut out = GrayImage::new(2, 2);
+            bp.project_into(view, &mut out).expect("3 channels");
+            let mut outside = 0;
+            for y in 0..11 {
+                for x in 0..23 {
+                    let expected = bp.value_at(&view, x, y);
+                    outside += usize::from(bp.histogram().bin_at(&view, x, y).is_none());
+                    assert_eq!(out.get_pixel(x as u32, y as u32).0[0], expected);
+                }
+            }
+            assert!(outside > 0, "the test needs pixels out of range");
+        }
     }
 
     #[test]

@@ -239,6 +239,24 @@ impl Histogram {
         Some(bin)
     }
 
+    /// Per histogram dimension: the image channel it reads and, per channel value, the bin's
+    /// offset into the values with `out_of_range` for values outside the dimension's range.
+    pub(crate) fn offset_tables(&self, out_of_range: u32) -> Vec<(usize, [u32; 256])> {
+        self.lut
+            .iter()
+            .zip(&self.spec.channels)
+            .map(|(table, &c)| {
+                let mut t = *table;
+                for v in &mut t {
+                    if *v == OUT_OF_RANGE {
+                        *v = out_of_range;
+                    }
+                }
+                (c, t)
+            })
+            .collect()
+    }
+
     /// The bin of a pixel given as its channel values, or `None` when a value is outside
     /// its range or a channel is missing.
     pub fn bin_of(&self, pixel: &[u8]) -> Option<usize> {

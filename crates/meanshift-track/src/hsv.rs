@@ -63,26 +63,30 @@ pub fn rgb_to_hsv(rgb: [u8; 3]) -> [u8; 3] {
     hsv_with(tables(), rgb)
 }
 
-#[inline]
+#[inline(always)]
 fn hsv_with(t: &Tables, [r, g, b]: [u8; 3]) -> [u8; 3] {
     let (r, g, b) = (i32::from(r), i32::from(g), i32::from(b));
     let v = r.max(g).max(b);
     let vmin = r.min(g).min(b);
     let diff = v - vmin;
     let round = 1 << (HSV_SHIFT - 1);
-    let s = (diff * t.saturation[v as usize] + round) >> HSV_SHIFT;
-    let h = if v == r {
-        g - b
-    } else if v == g {
-        b - r + 2 * diff
-    } else {
-        r - g + 4 * diff
-    };
-    let mut h = (h * t.hue[diff as usize] + round) >> HSV_SHIFT;
-    if h < 0 {
-        h += HUE_RANGE as i32;
-    }
+    let s = (diff * t.saturation[v as usize & 0xff] + round) >> HSV_SHIFT;
+    // OpenCV's three cases (red, green or blue the largest, in that order of precedence),
+    // written as selects rather than branches: on a noisy image which channel is largest
+    // is a coin toss, and mispredicted branches cost more than the arithmetic.
+    let from_green = b - r + 2 * diff;
+    let from_blue = r - g + 4 * diff;
+    let h = if v == g { from_green } else { from_blue };
+    let h = if v == r { g - b } else { h };
+    let h = (h * t.hue[diff as usize & 0xff] + round) >> HSV_SHIFT;
+    let h = h + (HUE_RANGE as i32 & (h >> 31));
     [h.clamp(0, 255) as u8, s as u8, v as u8]
+}
+
+/// A converter from RGB to HSV with its tables looked up once, for pixel loops.
+pub(crate) fn hsv_converter() -> impl Fn([u8; 3]) -> [u8; 3] {
+    let t = tables();
+    move |rgb| hsv_with(t, rgb)
 }
 
 /// Gray level of one 8-bit RGB colour, exactly as OpenCV's `COLOR_RGB2GRAY`
@@ -105,6 +109,15 @@ impl HsvImage {
         let mut out = HsvImage(ImageBuffer::new(image.width(), image.height()));
         convert_into(image, order, image_rect(image), &mut out);
         out
+    }
+
+    /// Convert a whole 8-bit colour image into `self`, reusing its buffer: no allocation
+    /// when `self` already has the image's size (reshaped otherwise). For per-frame use.
+    pub fn from_image_into(&mut self, image: &RgbImage, order: ChannelOrder) {
+        if self.0.dimensions() != image.dimensions() {
+            self.0 = ImageBuffer::new(image.width(), image.height());
+        }
+        convert_into(image, order, image_rect(image), self);
     }
 
     /// An all-zero HSV image, to be filled by [`HsvImage::convert_region`].
@@ -167,6 +180,15 @@ fn image_rect(image: &RgbImage) -> PixelRect {
 }
 
 fn convert_into(image: &RgbImage, order: ChannelOrder, region: PixelRect, out: &mut HsvImage) {
+    match order {
+        ChannelOrder::Rgb => convert_rows::<false>(image, region, out),
+        ChannelOrder::Bgr => convert_rows::<true>(image, region, out),
+    }
+}
+
+/// The conversion loop, one copy per channel order so that the order is not decided per
+/// pixel.
+fn convert_rows<const BGR: bool>(image: &RgbImage, region: PixelRect, out: &mut HsvImage) {
     if region.is_empty() {
         return;
     }
@@ -178,16 +200,69 @@ fn convert_into(image: &RgbImage, order: ChannelOrder, region: PixelRect, out: &
     for y in region.y as usize..region.bottom() as usize {
         let start = (y * width + x0) * 3;
         let end = (y * width + x1) * 3;
-        for (s, d) in src[start..end]
+        let (src, dst) = (&src[start..end], &mut dst[start..end]);
+        let mut blocks = src.chunks_exact(3 * BLOCK);
+        let mut out = dst.chunks_exact_mut(3 * BLOCK);
+        for (s, d) in (&mut blocks).zip(&mut out) {
+            convert_block::<BGR>(t, s, d);
+        }
+        for (s, d) in blocks
+            .remainder()
             .chunks_exact(3)
-            .zip(dst[start..end].chunks_exact_mut(3))
+            .zip(out.into_remainder().chunks_exact_mut(3))
         {
-            let rgb = match order {
-                ChannelOrder::Rgb => [s[0], s[1], s[2]],
-                ChannelOrder::Bgr => [s[2], s[1], s[0]],
+            let rgb = if BGR {
+                [s[2], s[1], s[0]]
+            } else {
+                [s[0], s[1], s[2]]
             };
             d.copy_from_slice(&hsv_with(t, rgb));
         }
+    }
+}
+
+/// Pixels converted together: the arithmetic of a block runs in vector lanes, only the two
+/// division-table reads per pixel are scalar.
+const BLOCK: usize = 16;
+
+/// [`hsv_with`] on [`BLOCK`] pixels (`src` and `dst` hold exactly `3 * BLOCK` bytes).
+#[inline(always)]
+fn convert_block<const BGR: bool>(t: &Tables, src: &[u8], dst: &mut [u8]) {
+    let mut r = [0i32; BLOCK];
+    let mut g = [0i32; BLOCK];
+    let mut b = [0i32; BLOCK];
+    for (i, p) in src.chunks_exact(3).enumerate().take(BLOCK) {
+        let (first, last) = if BGR { (p[2], p[0]) } else { (p[0], p[2]) };
+        r[i] = i32::from(first);
+        g[i] = i32::from(p[1]);
+        b[i] = i32::from(last);
+    }
+    let mut v = [0i32; BLOCK];
+    let mut diff = [0i32; BLOCK];
+    for i in 0..BLOCK {
+        v[i] = r[i].max(g[i]).max(b[i]);
+        diff[i] = v[i] - r[i].min(g[i]).min(b[i]);
+    }
+    let mut sdiv = [0i32; BLOCK];
+    let mut hdiv = [0i32; BLOCK];
+    for i in 0..BLOCK {
+        sdiv[i] = t.saturation[v[i] as usize & 0xff];
+        hdiv[i] = t.hue[diff[i] as usize & 0xff];
+    }
+    let round = 1 << (HSV_SHIFT - 1);
+    let mut out = [[0u8; 3]; BLOCK];
+    for i in 0..BLOCK {
+        let s = (diff[i] * sdiv[i] + round) >> HSV_SHIFT;
+        let from_green = b[i] - r[i] + 2 * diff[i];
+        let from_blue = r[i] - g[i] + 4 * diff[i];
+        let h = if v[i] == g[i] { from_green } else { from_blue };
+        let h = if v[i] == r[i] { g[i] - b[i] } else { h };
+        let h = (h * hdiv[i] + round) >> HSV_SHIFT;
+        let h = h + (HUE_RANGE as i32 & (h >> 31));
+        out[i] = [h.clamp(0, 255) as u8, s as u8, v[i] as u8];
+    }
+    for (d, o) in dst.chunks_exact_mut(3).zip(&out) {
+        d.copy_from_slice(o);
     }
 }
 
@@ -267,6 +342,57 @@ mod tests {
         assert_eq!(rgb_to_hsv([255, 0, 10])[0], 179);
         assert_eq!(rgb_to_gray([255, 255, 255]), 255);
         assert_eq!(rgb_to_gray([255, 0, 0]), 76);
+    }
+
+    /// OpenCV's scalar code as written, with its branches, for the branchless version to be
+    /// checked against.
+    fn reference_hsv([r, g, b]: [u8; 3]) -> [u8; 3] {
+        let t = tables();
+        let (r, g, b) = (i32::from(r), i32::from(g), i32::from(b));
+        let v = r.max(g).max(b);
+        let diff = v - r.min(g).min(b);
+        let round = 1 << (HSV_SHIFT - 1);
+        let s = (diff * t.saturation[v as usize] + round) >> HSV_SHIFT;
+        let h = if v == r {
+            g - b
+        } else if v == g {
+            b - r + 2 * diff
+        } else {
+            r - g + 4 * diff
+        };
+        let mut h = (h * t.hue[diff as usize] + round) >> HSV_SHIFT;
+        if h < 0 {
+            h += HUE_RANGE as i32;
+        }
+        [h as u8, s as u8, v as u8]
+    }
+
+    #[test]
+    fn branchless_conversion_equals_opencvs_branches() {
+        // Every third level of each channel plus the extremes and ties: 88^3 colours.
+        let levels: Vec<u8> = (0..=255u8).step_by(3).chain([1, 2, 254, 255]).collect();
+        for &r in &levels {
+            for &g in &levels {
+                for &b in &levels {
+                    assert_eq!(
+                        rgb_to_hsv([r, g, b]),
+                        reference_hsv([r, g, b]),
+                        "{r} {g} {b}"
+                    );
+                }
+            }
+        }
+        // Wider than a block, so that both the block and the remainder paths run.
+        let img = RgbImage::from_fn(37, 3, |x, y| {
+            Rgb([(x * 7) as u8, (y * 90) as u8, ((x * y * 13) % 256) as u8])
+        });
+        let mut into = HsvImage::new(1, 1);
+        into.from_image_into(&img, ChannelOrder::Bgr);
+        assert_eq!(into, HsvImage::from_image(&img, ChannelOrder::Bgr));
+        for (x, y, p) in img.enumerate_pixels() {
+            let [r, g, b] = p.0;
+            assert_eq!(into.get(x, y), Some(reference_hsv([b, g, r])), "{x} {y}");
+        }
     }
 
     #[test]

@@ -5,7 +5,8 @@
 use image::RgbImage;
 use nalgebra::Point2;
 
-use crate::hsv::ChannelRange;
+use crate::histogram::Histogram;
+use crate::hsv::{ChannelRange, hsv_converter, rgb_to_gray};
 use crate::meanshift::{Moments, TermCriteria, moments_from_f64_sums};
 use crate::model::{AppearanceModel, MarkerModel};
 use crate::rect::PixelRect;
@@ -66,10 +67,12 @@ impl Streak<'_> {
             f32::from(p[1]) - f32::from(b[1]),
             f32::from(p[2]) - f32::from(b[2]),
         ];
-        let a = (e[0] * d[0] + e[1] * d[1] + e[2] * d[2]) / dd;
-        if a < STREAK_MIN_COVERAGE {
+        // Compared before dividing: most pixels are background over background.
+        let ed = e[0] * d[0] + e[1] * d[1] + e[2] * d[2];
+        if ed < STREAK_MIN_COVERAGE * dd {
             return 0.0;
         }
+        let a = ed / dd;
         let r = [e[0] - a * d[0], e[1] - a * d[1], e[2] - a * d[2]];
         let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
         let limit = STREAK_RESIDUAL[0].max(STREAK_RESIDUAL[1] * a.min(1.0) * dd.sqrt());
@@ -117,6 +120,63 @@ pub(crate) struct Region {
     p: Vec<f64>,
     /// Pixel scratch of a kernel step.
     pixels: Vec<(i32, i32, u32, f64)>,
+    /// The per-pixel lookup of the latest fill.
+    lookup: Lookup,
+}
+
+/// A model and a mask as table lookups: per feature channel and value, the histogram bin's
+/// offset (0 for a channel the histogram does not read), or at least `total` when the value
+/// is outside the histogram's range or the mask. The three offsets of a pixel are summed:
+/// any sum of `total` or more reads the padding of `values` (weight 0, no bin), so a pixel is
+/// weighed without a branch.
+#[derive(Debug, Default)]
+struct Lookup {
+    tables: [Vec<u32>; 3],
+    /// Weight per bin, padded with zeros to `3 total + 1` entries.
+    values: Vec<f32>,
+    /// Bin per entry of `values` ([`NO_BIN`] in the padding).
+    bins: Vec<u32>,
+}
+
+impl Lookup {
+    fn build(&mut self, model: &MarkerModel, mask: Option<&ChannelRange>) {
+        let (hist, weights): (&Histogram, &mut dyn Iterator<Item = f32>) = match model {
+            MarkerModel::Projected { projector } => (
+                projector.histogram(),
+                &mut projector.bin_values().iter().map(|&v| f32::from(v)),
+            ),
+            MarkerModel::Kernel { hist, weight, .. } => (hist, &mut weight.iter().copied()),
+        };
+        // At most 2^24 bins (the histogram's limit): 3 total + 1 fits in u32.
+        let total = hist.values().len();
+        let outside = total as u32;
+        for t in &mut self.tables {
+            t.clear();
+            t.resize(256, 0);
+        }
+        for (c, t) in hist.offset_tables(outside) {
+            if let Some(table) = self.tables.get_mut(c) {
+                for (d, s) in table.iter_mut().zip(t) {
+                    *d = (*d + s).min(outside);
+                }
+            }
+        }
+        if let Some(mask) = mask {
+            for (c, table) in self.tables.iter_mut().enumerate() {
+                for (v, d) in table.iter_mut().enumerate() {
+                    if !(usize::from(mask.lower[c])..=usize::from(mask.upper[c])).contains(&v) {
+                        *d = outside;
+                    }
+                }
+            }
+        }
+        self.values.clear();
+        self.values.extend(weights);
+        self.values.resize(3 * total + 1, 0.0);
+        self.bins.clear();
+        self.bins.extend(0..total as u32);
+        self.bins.resize(3 * total + 1, NO_BIN);
+    }
 }
 
 /// The result of a mean-shift from one start.
@@ -144,8 +204,6 @@ impl Region {
         let rect = rect.intersect(&PixelRect::image(frame.width(), frame.height()));
         self.rect = rect;
         let area = rect.area() as usize;
-        let raw = frame.as_raw();
-        let stride = frame.width() as usize * 3;
         self.weights.clear();
         self.weights.reserve(area);
         let kernel = matches!(model, MarkerModel::Kernel { .. });
@@ -153,17 +211,49 @@ impl Region {
         if kernel {
             self.bins.reserve(area);
         }
+        let hsv = matches!(
+            appearance,
+            AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. }
+        );
+        self.lookup.build(model, hsv.then_some(filter.mask));
+        match appearance {
+            AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. } => {
+                self.fill_rows(frame, rect, filter, kernel, hsv_converter());
+            }
+            AppearanceModel::Rgb { .. } => self.fill_rows(frame, rect, filter, kernel, |p| p),
+            AppearanceModel::Gray { .. } => {
+                self.fill_rows(frame, rect, filter, kernel, |p| [rgb_to_gray(p), 0, 0]);
+            }
+        }
+    }
+
+    /// The pixel loop of [`Region::fill`], one copy per feature conversion.
+    #[inline(always)]
+    fn fill_rows(
+        &mut self,
+        frame: &RgbImage,
+        rect: PixelRect,
+        filter: &PixelFilter<'_>,
+        kernel: bool,
+        features: impl Fn([u8; 3]) -> [u8; 3],
+    ) {
+        let raw = frame.as_raw();
+        let stride = frame.width() as usize * 3;
         let check = !filter.masked.is_empty() || filter.depth.is_some();
         let previous = filter
             .streak
             .filter(|s| s.previous.dimensions() == frame.dimensions())
             .map(|s| (s, s.previous.as_raw()));
+        let Lookup {
+            tables: [t0, t1, t2],
+            values,
+            bins,
+        } = &self.lookup;
         for y in rect.y..rect.bottom() as i32 {
             let start = y as usize * stride;
-            let row = &raw[start..];
-            for x in rect.x..rect.right() as i32 {
-                let k = x as usize * 3;
-                let rgb = [row[k], row[k + 1], row[k + 2]];
+            let row = &raw[start + rect.x as usize * 3..start + rect.right() as usize * 3];
+            for (i, p) in row.chunks_exact(3).enumerate() {
+                let x = rect.x + i as i32;
                 if check && filter.rejects(x, y) {
                     self.weights.push(0.0);
                     if kernel {
@@ -171,22 +261,21 @@ impl Region {
                     }
                     continue;
                 }
-                let counted = appearance.features(rgb, filter.mask);
-                let streak = previous.map_or(0.0, |(s, prev)| {
-                    let j = start + k;
-                    s.weight(rgb, [prev[j], prev[j + 1], prev[j + 2]])
-                });
-                match model {
-                    MarkerModel::Projected { projector } => {
-                        let w = counted.map_or(0.0, |f| f32::from(projector.value_of(&f)));
-                        self.weights.push(w.max(streak));
-                    }
-                    MarkerModel::Kernel { hist, weight, .. } => {
-                        let bin = counted.and_then(|f| hist.bin_of(&f));
-                        self.bins.push(bin.map_or(NO_BIN, |b| b as u32));
-                        self.weights
-                            .push(bin.map_or(0.0, |b| weight[b]).max(streak));
-                    }
+                let rgb = [p[0], p[1], p[2]];
+                let f = features(rgb);
+                let k = (t0[usize::from(f[0])] + t1[usize::from(f[1])] + t2[usize::from(f[2])])
+                    as usize;
+                let mut w = values[k];
+                // A streak pixel weighs at most 255: only pixels below that can gain.
+                if w < 255.0
+                    && let Some((s, prev)) = previous
+                {
+                    let j = start + (rect.x as usize + i) * 3;
+                    w = w.max(s.weight(rgb, [prev[j], prev[j + 1], prev[j + 2]]));
+                }
+                self.weights.push(w);
+                if kernel {
+                    self.bins.push(bins[k]);
                 }
             }
         }

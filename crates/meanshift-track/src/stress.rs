@@ -1140,7 +1140,7 @@ fn place_markers(cfg: &StressConfig, rng: &mut Rng) -> Vec<StressMarker> {
                 let inside = |p: Point2<f64>| {
                     p.x > margin && p.y > margin && p.x < w - margin && p.y < h - margin
                 };
-                if !reentry && !(inside(p0) && inside(p1)) {
+                if !(reentry || inside(p0) && inside(p1)) {
                     continue;
                 }
                 let clearance = out
@@ -1323,8 +1323,8 @@ impl Canvas {
                 }
                 let a = n as f32 / 16.0;
                 let k = self.index(x, y);
-                for c in 0..3 {
-                    self.data[k + c] += a * (f32::from(rgb[c]) - self.data[k + c]);
+                for (d, &v) in self.data[k..k + 3].iter_mut().zip(&rgb) {
+                    *d += a * (f32::from(v) - *d);
                 }
             }
         }
@@ -1590,7 +1590,7 @@ mod tests {
         let scene =
             StressScene::new(&StressConfig::condition(Condition::Reentry, 2)).expect("valid");
         let hidden = (0..scene.frames())
-            .filter(|&f| scene.visibility(f).iter().any(|&v| v == 0.0))
+            .filter(|&f| scene.visibility(f).contains(&0.0))
             .count();
         assert!(hidden > 5, "{hidden}");
     }

@@ -91,12 +91,23 @@ const DISTRACTOR_COST: f64 = 6.0;
 const DISTRACTOR_RADIUS: f64 = 0.3;
 /// Look-alikes remembered per marker (the oldest is forgotten first).
 const MAX_DISTRACTORS: usize = 32;
+/// Sightings counted per look-alike, at most.
+const MAX_SEEN: u32 = 64;
 /// A look-alike seen again within this distance (pixels) has not moved.
 const STATIC_PX: f64 = 1.5;
 /// Border of CamShift's size estimate around the window (OpenCV's `TOLERANCE`).
 const ADAPTIVE_BORDER_PX: i32 = 10;
 /// Blobs of fewer pixels are noise, not pieces of a marker.
 const FRAGMENT_MIN_PIXELS: usize = 3;
+/// A pixel whose colour moved this much (8-bit levels, in some channel) since the previous
+/// frame has changed (colour noise and JPEG stay below it).
+const CHANGED_LEVEL: u8 = 30;
+/// A candidate farther than a window from where its marker was last seen (in the frame
+/// before) changed on less than this share of its pixels: it was there already, so it is
+/// not the marker arriving.
+const STATIC_SHARE: f64 = 0.3;
+/// Extra cost of such a static candidate.
+const STATIC_JUMP_COST: f64 = 8.0;
 /// A pixel no brighter than this in every channel is a hole (no data).
 const HOLE_LEVEL: u8 = 2;
 /// Share of holes around a marker above which its blob bridges 2-pixel gaps.
@@ -506,6 +517,33 @@ struct Measured {
     moments: Option<Moments>,
 }
 
+/// Share of the pixels of `holds` whose colour changed since `previous` by more than
+/// [`CHANGED_LEVEL`] in some channel: a marker that just arrived changed its pixels; a
+/// static look-alike did not.
+fn changed_share(frame: &RgbImage, previous: &RgbImage, holds: PixelRect) -> f64 {
+    let r = holds.intersect(&image_rect(frame.width(), frame.height()));
+    if r.is_empty() || previous.dimensions() != frame.dimensions() {
+        return 1.0;
+    }
+    let (mut changed, mut all) = (0usize, 0usize);
+    for y in r.y..r.bottom() as i32 {
+        for x in r.x..r.right() as i32 {
+            let (a, b) = (
+                frame.get_pixel(x as u32, y as u32).0,
+                previous.get_pixel(x as u32, y as u32).0,
+            );
+            all += 1;
+            if a.iter()
+                .zip(&b)
+                .any(|(&p, &q)| p.abs_diff(q) > CHANGED_LEVEL)
+            {
+                changed += 1;
+            }
+        }
+    }
+    changed as f64 / all.max(1) as f64
+}
+
 /// A candidate of one marker, with its surroundings' correlation and its cost.
 #[derive(Debug, Clone, Copy)]
 struct Scored {
@@ -657,11 +695,7 @@ impl Tracker {
             &config.hsv_mask,
             config.background_weighting,
         )?;
-        let mask = if std::env::var("DBG_NOMASK").is_ok() {
-            config.hsv_mask
-        } else {
-            marker_mask(frame, w, &config.model, &config.hsv_mask)
-        };
+        let mask = marker_mask(frame, w, &config.model, &config.hsv_mask);
         let center = w.center();
         let side = f64::from(w.width.max(w.height));
         let mut state = MarkerState {
@@ -792,7 +826,7 @@ impl Tracker {
             for c in candidates_in(&mut self.region, &mut self.labeler, m, None, &[]) {
                 if centres
                     .iter()
-                    .all(|(p, side)| (p - c.center).norm() > *side)
+                    .all(|(p, side)| (p - c.center).norm() > 0.5 * side)
                 {
                     let side = window_px(m);
                     remember_distractor(m, c.center, c.holds, side);
@@ -840,11 +874,11 @@ impl Tracker {
 
         // Quick pass: near the prediction, the candidate that fits best.
         let mut quick: Vec<Option<Scored>> = Vec::with_capacity(n);
-        let mut rejected: Vec<Vec<(Point2<f64>, PixelRect)>> = vec![Vec::new(); n];
+        let mut rejected: Vec<Vec<(Point2<f64>, PixelRect)>> = Vec::with_capacity(n);
         for i in 0..n {
             let (best, others) = self.quick_pass(frame, depth, i, &predictions);
             quick.push(best);
-            rejected[i] = others;
+            rejected.push(others);
         }
 
         // Accept confident results in the normal gate, nearest to their prediction first.
@@ -1030,23 +1064,6 @@ impl Tracker {
             .collect();
         let mut scored = m.score(&with_context, wide);
         scored.sort_by(|a, b| a.cost.total_cmp(&b.cost));
-        if std::env::var("TRACE").is_ok_and(|v| v == m.id) {
-            for c in &scored {
-                eprintln!(
-                    "f{} quick {} pred ({:.1},{:.1}) gate_var {:.1} cand ({:.1},{:.1}) conf {:.2} ctx {:?} cost {:.2}",
-                    self.tracks[0].observations.len(),
-                    m.id,
-                    pred.x,
-                    pred.y,
-                    m.gate_var,
-                    c.measured.center.x,
-                    c.measured.center.y,
-                    c.measured.confidence,
-                    c.context,
-                    c.cost
-                );
-            }
-        }
         let others = scored
             .iter()
             .skip(1)
@@ -1152,7 +1169,16 @@ impl Tracker {
                     .map(|t| t.ncc_near(frame, c.center, &mut self.patch));
                 with_context.push((c, context));
             }
-            for s in m.score(&with_context, wide) {
+            let previous = self.previous.as_ref();
+            for mut s in m.score(&with_context, wide) {
+                if let Some(prev) = previous
+                    && m.misses == 0
+                    && m.template.is_none()
+                    && (s.measured.center - m.last_center).norm() > window_px(m)
+                    && changed_share(frame, prev, s.measured.holds) < STATIC_SHARE
+                {
+                    s.cost += STATIC_JUMP_COST;
+                }
                 candidates.push(Candidate {
                     marker: i,
                     measured: s.measured,
@@ -1184,33 +1210,6 @@ impl Tracker {
             }
         }
         let assignment = assign(&cost, cols, &vec![UNMATCHED_COST; rows]);
-        if std::env::var("TRACE").is_ok() {
-            for (r, &i) in undecided.iter().enumerate() {
-                let m = &self.markers[i];
-                eprintln!(
-                    "frame {} marker {} misses {} pred ({:.1},{:.1}) gate_var {:.1} -> {:?}",
-                    self.tracks[0].observations.len(),
-                    m.id,
-                    m.misses,
-                    m.filter.position.x,
-                    m.filter.position.y,
-                    m.gate_var,
-                    assignment[r]
-                );
-                for (c, &j) in candidates.iter().zip(&column) {
-                    if c.marker == i {
-                        eprintln!(
-                            "   col {j} at ({:.1},{:.1}) conf {:.2} cost {:.2} ctx {:?}",
-                            c.measured.center.x,
-                            c.measured.center.y,
-                            c.measured.confidence,
-                            c.cost,
-                            c.context
-                        );
-                    }
-                }
-            }
-        }
         let chosen: Vec<Option<(Measured, Option<f64>)>> = undecided
             .iter()
             .zip(&assignment)
@@ -1544,7 +1543,7 @@ fn fill(
     };
     let colour_model = !matches!(config.model, AppearanceModel::Gray { .. });
     let streak = previous
-        .filter(|_| config.recovery && colour_model && std::env::var("DBG_NOSTREAK").is_err())
+        .filter(|_| config.recovery && colour_model)
         .map(|previous| Streak {
             previous,
             colour: m.colour,
@@ -1934,7 +1933,8 @@ fn manoeuvre_var(config: &TrackerConfig, side: f64, misses: usize, frame_side: f
 }
 
 /// Remember a look-alike at `p`: seen again where it was (within [`STATIC_PX`]), it counts
-/// once more; moved, it starts over there. The oldest is forgotten past the limit.
+/// once more; seen elsewhere nearby (partly covered, or moving), its count halves, and below
+/// 2 it starts over there. The oldest is forgotten past the limit.
 fn remember_distractor(m: &mut MarkerState, p: Point2<f64>, bounds: PixelRect, side: f64) {
     if let Some(d) = m
         .distractors
@@ -1942,12 +1942,15 @@ fn remember_distractor(m: &mut MarkerState, p: Point2<f64>, bounds: PixelRect, s
         .find(|d| (d.at - p).norm() < (DISTRACTOR_RADIUS * side).max(2.0))
     {
         if (d.at - p).norm() <= STATIC_PX {
-            d.seen = d.seen.saturating_add(1);
+            d.seen = d.seen.saturating_add(1).min(MAX_SEEN);
         } else {
-            d.seen = 1;
+            d.seen /= 2;
+            if d.seen < 2 {
+                d.at = p;
+                d.bounds = bounds;
+                d.seen = 1;
+            }
         }
-        d.at = p;
-        d.bounds = bounds;
         return;
     }
     if m.distractors.len() >= MAX_DISTRACTORS {
