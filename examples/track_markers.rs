@@ -1,7 +1,7 @@
 //! Track markers through a folder of frames from the windows a user drew on the first one.
 //!
 //! ```text
-//! cargo run --release --example track_markers -- <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray] [--paper]
+//! cargo run --release --example track_markers -- <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray] [--window fixed|adaptive] [--paper]
 //! ```
 //!
 //! `FRAMES_DIR` holds PNG or JPEG images, taken in name order. `INIT_JSON` is
@@ -9,7 +9,8 @@
 //! each window on the first frame, pixels). The output (stdout, or `--out`) is
 //! `{"frames": N, "markers": [{"id", "centers": [[x, y] | null, ...], "status": [...],
 //! "confidence": [...]}], "timing": {"decode_s", "track_s"}}`, one entry per frame; `track_s`
-//! covers tracking only.
+//! covers tracking only. A summary per marker goes to stderr: frames tracked, recovered,
+//! predicted and lost, and the longest loss.
 //!
 //! With no arguments it renders a synthetic pull-and-release sequence with kinect-io's `synth`
 //! (the demo tree, its red markers swinging), tracks it, and prints the error against the
@@ -23,16 +24,19 @@ use treemocap::image::RgbImage;
 use treemocap::kinect_io::synth::{self, SynthConfig};
 use treemocap::meanshift_track::synthetic::score;
 use treemocap::meanshift_track::{
-    AppearanceModel, MarkerInit, PixelRect, Track, Tracker, TrackerConfig,
+    AppearanceModel, MarkerInit, PixelRect, Track, Tracker, TrackerConfig, WindowMode,
 };
 use treemocap::nalgebra::{Point2, Vector3};
 
-const USAGE: &str = "usage: track_markers <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray] [--paper]
+const USAGE: &str = "usage: track_markers <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray] [--window fixed|adaptive] [--paper]
 
 Tracks every marker of INIT_JSON ([{\"id\": \"A\", \"x\": 396, \"y\": 158, \"w\": 12, \"h\": 12}, ...],
 windows on the first frame) through the PNG/JPEG images of FRAMES_DIR in name order and
-writes JSON tracks to stdout or to --out. Default model: hue (the paper's). --paper runs
-plain mean-shift as the paper did (no prediction, recovery or exclusivity), for comparison.
+writes JSON tracks to stdout or to --out, and a summary per marker to stderr. Default
+model: hue (the paper's). --window adaptive lets each window follow the marker's size
+(CamShift's second moments, between half and twice the first size); fixed (the default)
+keeps the first size. --paper runs plain mean-shift as the paper did (no prediction,
+recovery or exclusivity), for comparison.
 With no arguments: a synthetic Kinect V2 sequence, scored against its ground truth.";
 
 /// Accuracy goal of the tracker: a centre within this distance of the truth (pixels).
@@ -73,6 +77,7 @@ struct Args {
     init_json: PathBuf,
     out: Option<PathBuf>,
     model: AppearanceModel,
+    window: WindowMode,
     paper: bool,
 }
 
@@ -81,12 +86,17 @@ fn parse_args() -> Result<Option<Option<Args>>, String> {
     let mut out = None;
     let mut model = AppearanceModel::PAPER;
     let mut paper = false;
+    let mut window = WindowMode::default();
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
             "-h" | "--help" => return Ok(None),
             "--out" => out = Some(PathBuf::from(it.next().ok_or("--out needs a file")?)),
             "--paper" => paper = true,
+            "--window" => {
+                let name = it.next().ok_or("--window needs fixed or adaptive")?;
+                window = WindowMode::from_name(&name).map_err(|e| e.to_string())?;
+            }
             "--model" => {
                 let name = it.next().ok_or("--model needs hue, hs, rgb or gray")?;
                 model = AppearanceModel::from_name(&name).map_err(|e| e.to_string())?;
@@ -107,6 +117,7 @@ fn parse_args() -> Result<Option<Option<Args>>, String> {
                 init_json,
                 out,
                 model,
+                window,
                 paper,
             })))
         }
@@ -180,10 +191,14 @@ fn track_folder(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let config = if args.paper {
         TrackerConfig {
             model: args.model,
+            window: args.window,
             ..TrackerConfig::paper()
         }
     } else {
-        TrackerConfig::for_model(args.model)
+        TrackerConfig {
+            window: args.window,
+            ..TrackerConfig::for_model(args.model)
+        }
     };
     let mut tracker = Tracker::new(config, &first, None, &inits)
         .map_err(|e| format!("{}: {e}", paths[0].display()))?;
@@ -206,6 +221,14 @@ fn track_folder(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         markers: tracker.tracks().iter().map(marker_out).collect(),
         timing: Timing { decode_s, track_s },
     };
+    eprintln!("marker  tracked  recovered  predicted  lost  longest loss (frames)");
+    for track in tracker.tracks() {
+        let s = track.summary();
+        eprintln!(
+            "{:<6}  {:>7}  {:>9}  {:>9}  {:>4}  {:>12}",
+            track.id, s.tracked, s.recovered, s.predicted, s.lost, s.longest_loss_frames
+        );
+    }
     let json = serde_json::to_string_pretty(&output)?;
     match &args.out {
         Some(path) => {

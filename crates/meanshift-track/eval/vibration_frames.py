@@ -9,7 +9,8 @@ example runs with our tracker and with plain mean-shift (`--paper`), both with t
 and this prints, for each, the share of marker-frames within 3 px of the truth (after removing
 each marker's first-frame offset between the centroid and the template centre), the share
 still on its own target (within 20 px; neighbours are 150 px apart) and that share over the
-release (frames 229-247).
+release (frames 229-247), and the frames reported as found (tracked or recovered) more than
+8 px off. All 28 targets are tracked at once, 44x44 windows as in the issue.
 
 Needs opencv-python-headless and numpy (not needed by CI). Run from the repository root:
     python3 crates/meanshift-track/eval/vibration_frames.py [FRAMES_DIR]
@@ -27,7 +28,7 @@ FRAMES = sys.argv[1] if len(sys.argv) > 1 else "../shared/data/tracking/vibratio
 FIRST, LAST = 201, 260
 HUB = (621, 454)  # the top row's hub target on frame 201 (pixels)
 ROWS_Y = (455, 930, 1415, 1905)
-WINDOW = (46, 48)
+WINDOW = (44, 44)
 RELEASE = range(229 - FIRST, 247 - FIRST + 1)
 
 
@@ -80,7 +81,7 @@ def truth_paths(frames, targets):
 
 
 def score(out, truth):
-    n = within = own = rel = rel_own = 0
+    n = within = within4 = own = rel = rel_own = found_far = 0
     for m in out["markers"]:
         path = truth[m["id"]][1]
         c0 = m["centers"][0]
@@ -89,11 +90,13 @@ def score(out, truth):
             e = math.inf if c is None else math.hypot(c[0] - bx - p[0], c[1] - by - p[1])
             n += 1
             within += e <= 3.0
+            within4 += e <= 4.0
+            found_far += m["status"][i] in ("tracked", "recovered") and e > 8.0
             own += e <= 20.0
             if i in RELEASE:
                 rel += 1
                 rel_own += e <= 20.0
-    return 100 * within / n, 100 * own / n, 100 * rel_own / rel, n
+    return 100 * within / n, 100 * within4 / n, 100 * own / n, 100 * rel_own / rel, found_far, n
 
 
 def main():
@@ -113,10 +116,11 @@ def main():
                            check=True, stderr=subprocess.DEVNULL)
             with open(out_path) as f:
                 out = json.load(f)
-            w, o, r, n = score(out, truth)
-            print("%-28s %d marker-frames: %.1f %% within 3 px, %.1f %% on their own target, "
-                  "%.1f %% over the release; track_s %.3f"
-                  % (name, n, w, o, r, out["timing"]["track_s"]))
+            w, w4, o, r, far, n = score(out, truth)
+            print("%-28s %d marker-frames: %.1f %% within 3 px, %.1f %% within 4 px, "
+                  "%.1f %% on their own target, %.1f %% over the release, %d found (tracked or "
+                  "recovered) more than 8 px off; track_s %.3f"
+                  % (name, n, w, w4, o, r, far, out["timing"]["track_s"]))
 
 
 if __name__ == "__main__":

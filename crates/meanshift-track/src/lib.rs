@@ -79,8 +79,8 @@ pub use meanshift::{
 pub use model::AppearanceModel;
 pub use rect::PixelRect;
 pub use tracker::{
-    DepthView, MarkerInit, MotionModel, Observation, Track, TrackStatus, Tracker, TrackerConfig,
-    WindowMode,
+    DepthView, MarkerInit, MotionModel, Observation, Track, TrackStatus, TrackSummary, Tracker,
+    TrackerConfig, WindowMode,
 };
 pub use view::ImageView;
 

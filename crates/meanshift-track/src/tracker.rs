@@ -403,6 +403,67 @@ pub struct Track {
     pub observations: Vec<Observation>,
 }
 
+/// How a track's frames were obtained: frames per status and the longest run without a
+/// measurement.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TrackSummary {
+    /// Frames [`TrackStatus::Tracked`].
+    pub tracked: usize,
+    /// Frames [`TrackStatus::Recovered`].
+    pub recovered: usize,
+    /// Frames [`TrackStatus::Predicted`].
+    pub predicted: usize,
+    /// Frames [`TrackStatus::Lost`].
+    pub lost: usize,
+    /// Frames [`TrackStatus::Set`].
+    pub set: usize,
+    /// Longest run of consecutive frames without a measurement (predicted or lost).
+    pub longest_loss_frames: usize,
+}
+
+impl Track {
+    /// Frames per status and the longest loss.
+    ///
+    /// ```
+    /// use meanshift_track::{Observation, Track, TrackStatus, PixelRect};
+    /// let at = |status| Observation {
+    ///     center: None,
+    ///     window: PixelRect::new(0, 0, 1, 1),
+    ///     status,
+    ///     confidence: 0.0,
+    /// };
+    /// let track = Track {
+    ///     id: "A".into(),
+    ///     observations: vec![
+    ///         at(TrackStatus::Tracked),
+    ///         at(TrackStatus::Predicted),
+    ///         at(TrackStatus::Lost),
+    ///         at(TrackStatus::Recovered),
+    ///         at(TrackStatus::Predicted),
+    ///     ],
+    /// };
+    /// let s = track.summary();
+    /// assert_eq!((s.tracked, s.recovered, s.predicted, s.lost), (1, 1, 2, 1));
+    /// assert_eq!(s.longest_loss_frames, 2);
+    /// ```
+    pub fn summary(&self) -> TrackSummary {
+        let mut s = TrackSummary::default();
+        let mut run = 0;
+        for o in &self.observations {
+            match o.status {
+                TrackStatus::Tracked => s.tracked += 1,
+                TrackStatus::Recovered => s.recovered += 1,
+                TrackStatus::Predicted => s.predicted += 1,
+                TrackStatus::Lost => s.lost += 1,
+                TrackStatus::Set => s.set += 1,
+            }
+            run = if o.status.found() { 0 } else { run + 1 };
+            s.longest_loss_frames = s.longest_loss_frames.max(run);
+        }
+        s
+    }
+}
+
 /// A per-pixel depth map (metres) of the same size as the frames, for depth gating; `None`
 /// where there is no depth (such pixels are not gated).
 #[derive(Debug, Clone, Copy)]
