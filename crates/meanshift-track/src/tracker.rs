@@ -27,7 +27,7 @@
 //! Centres are in pixel coordinates with pixel centres at integers.
 
 use image::RgbImage;
-use nalgebra::Point2;
+use nalgebra::{Point2, Vector2};
 
 use crate::assign::assign;
 use crate::detect::{Blob, Labeler};
@@ -74,6 +74,9 @@ const CONTEXT_CAP: f64 = 12.0;
 const CONTEXT_SIGMA_MIN: f64 = 0.02;
 /// Most a candidate's confidence shortfall (from the best candidate's) may cost.
 const APPEARANCE_CAP: f64 = 8.0;
+/// Spreads below its usual confidence at which a measurement is not accepted without
+/// competition.
+const TYPICAL_SIGMAS: f64 = 3.0;
 /// Least spread assumed for a marker's confidence.
 const CONFIDENCE_SIGMA_MIN: f64 = 0.08;
 /// Share of each found frame blended into a marker's running appearance statistics.
@@ -84,6 +87,21 @@ const MANOEUVRE_PRIOR: f64 = 0.1;
 /// Cost (negative log-likelihood, relative to a perfect candidate at the prediction) above
 /// which a marker rather stays unmatched.
 const UNMATCHED_COST: f64 = 12.0;
+/// Least lead (cost units, nats) of a marker's best place over its next choice for the marker
+/// to be decided on its own, before its neighbours: e^3, twenty times likelier.
+const ANCHOR_MARGIN: f64 = 3.0;
+/// Reach (windows) within which a decided marker's displacement guides an ambiguous one.
+const NEIGHBOUR_RADIUS_WINDOWS: f64 = 6.0;
+/// Largest cost of disagreeing with the neighbours' displacement.
+const NEIGHBOUR_CAP: f64 = 6.0;
+/// Rate of the running means of how alike two markers move.
+const COHERENCE_RATE: f64 = 0.2;
+/// Least running mean of the two markers' squared displacements (px^2 per frame) for their
+/// likeness to mean anything (static markers are alike by default).
+const COHERENCE_MIN_MOTION_PX2: f64 = 1.0;
+/// Largest share of the squared displacements that their squared difference may be for two
+/// markers to count as moving alike (their displacements agree to about a third).
+const COHERENCE_RATIO: f64 = 0.1;
 /// Extra cost of a candidate on a look-alike the marker has turned down before, when it lies
 /// outside the motion model's normal gate.
 const DISTRACTOR_COST: f64 = 6.0;
@@ -637,6 +655,31 @@ pub struct Tracker {
     patch: Vec<f32>,
     /// The last frame given: the background of this frame's streaks.
     previous: Option<RgbImage>,
+    /// Per pair of markers (row-major `n x n`), how alike they have moved.
+    coherence: Vec<Coherence>,
+}
+
+/// How alike two markers have moved: running means of the squared difference of their
+/// displacements and of the sum of their squared displacements, over frames both were found
+/// in consecutively.
+#[derive(Debug, Clone, Copy, Default)]
+struct Coherence {
+    difference_px2: f64,
+    motion_px2: f64,
+}
+
+impl Coherence {
+    fn learn(&mut self, a: Vector2<f64>, b: Vector2<f64>) {
+        self.difference_px2 += COHERENCE_RATE * ((a - b).norm_squared() - self.difference_px2);
+        self.motion_px2 += COHERENCE_RATE * (a.norm_squared() + b.norm_squared() - self.motion_px2);
+    }
+
+    /// Not seen to move differently: alike (one rig, one branch, one camera shake), or not
+    /// seen moving enough to tell.
+    fn coherent(&self) -> bool {
+        self.motion_px2 < COHERENCE_MIN_MOTION_PX2
+            || self.difference_px2 <= COHERENCE_RATIO * self.motion_px2
+    }
 }
 
 fn image_rect(width: u32, height: u32) -> PixelRect {
@@ -688,6 +731,7 @@ impl Tracker {
             labeler: Labeler::default(),
             patch: Vec::new(),
             previous: None,
+            coherence: vec![Coherence::default(); markers.len() * markers.len()],
         };
         tracker.check_depth(depth.as_ref())?;
         for (k, init) in markers.iter().enumerate() {
@@ -974,6 +1018,7 @@ impl Tracker {
                 !jumped || !m.context_informative() || q.context.is_none_or(|v| m.familiar(v));
             let accept = m.misses == 0
                 && q.measured.confidence >= self.config.min_confidence
+                && m.typical(q.measured.confidence)
                 && d2[i] <= GATE_CHI2
                 && !m.on_distractor(c)
                 && familiar
@@ -1010,6 +1055,25 @@ impl Tracker {
                 if (p - q.center).norm() > side && places_now.iter().all(|c| (c - p).norm() > side)
                 {
                     remember_distractor(&mut self.markers[i], p, bounds, side);
+                }
+            }
+        }
+
+        // How alike the markers found in this frame and the last have moved.
+        let moved: Vec<Option<Vector2<f64>>> = results
+            .iter()
+            .zip(&self.markers)
+            .map(|(r, m)| {
+                r.as_ref()
+                    .filter(|_| m.last_status.found())
+                    .map(|(q, _, _)| q.center - m.last_center)
+            })
+            .collect();
+        for (a, da) in moved.iter().enumerate() {
+            for (b, db) in moved.iter().enumerate().skip(a + 1) {
+                if let (Some(da), Some(db)) = (da, db) {
+                    self.coherence[a * n + b].learn(*da, *db);
+                    self.coherence[b * n + a] = self.coherence[a * n + b];
                 }
             }
         }
@@ -1270,7 +1334,25 @@ impl Tracker {
                 *slot = slot.min(c.cost);
             }
         }
-        let assignment = assign(&cost, cols, &vec![UNMATCHED_COST; rows]);
+        let anchors: Vec<Anchor> = claimed
+            .iter()
+            .map(|&(j, _, c)| {
+                let last = self.markers[j].last_center;
+                Anchor {
+                    marker: j,
+                    last,
+                    moved: c - last,
+                }
+            })
+            .collect();
+        let lasts: Vec<(usize, Point2<f64>, f64)> = undecided
+            .iter()
+            .map(|&i| (i, self.markers[i].last_center, window_px(&self.markers[i])))
+            .collect();
+        let places_at: Vec<Point2<f64>> = places.iter().map(|p| p.0).collect();
+        let n = self.markers.len();
+        let coherent = |a: usize, b: usize| self.coherence[a * n + b].coherent();
+        let assignment = assign_anchored(&cost, cols, &lasts, &places_at, anchors, &coherent);
         let chosen: Vec<Option<(Measured, Option<f64>)>> = undecided
             .iter()
             .zip(&assignment)
@@ -1450,6 +1532,14 @@ impl MarkerState {
                 })
             })
             .collect()
+    }
+
+    /// Whether a confidence is within what this marker usually shows (a blurred or paler
+    /// marker may be less alike, so the check is loose: [`TYPICAL_SIGMAS`] spreads). A
+    /// measurement that is not goes to detection, where it competes with other candidates.
+    fn typical(&self, confidence: f64) -> bool {
+        let sigma = self.confidence_var.sqrt().max(CONFIDENCE_SIGMA_MIN);
+        confidence >= self.confidence_mean - TYPICAL_SIGMAS * sigma
     }
 
     /// Whether a context correlation `c` is within what this marker usually shows.
@@ -1991,6 +2081,164 @@ fn manoeuvre_var(config: &TrackerConfig, side: f64, misses: usize, frame_side: f
         k
     };
     (sigma * sigma * growth).min((2.0 * frame_side).powi(2))
+}
+
+/// Assign places (columns) to markers (rows) when several markers may be fooled at once (a
+/// row of look-alike targets that all jump): the marker whose best place beats its
+/// alternatives (another place, or none) by [`ANCHOR_MARGIN`] or more is decided first; it
+/// becomes an anchor whose displacement this frame tells the still ambiguous markers near it
+/// where to look (nearby markers move alike: one branch, one rig), and the next clearest
+/// marker is decided, until none is clear; the rest are assigned jointly
+/// ([`assign`]). `cost` is row-major `rows x columns` (infinite: not a candidate); `lasts`
+/// each row's marker, its last centre and window side; `anchors` the markers decided before;
+/// `coherent(a, b)` whether markers `a` and `b` have moved alike.
+fn assign_anchored(
+    cost: &[f64],
+    columns: usize,
+    lasts: &[(usize, Point2<f64>, f64)],
+    places: &[Point2<f64>],
+    mut anchors: Vec<Anchor>,
+    coherent: &dyn Fn(usize, usize) -> bool,
+) -> Vec<Option<usize>> {
+    let rows = lasts.len();
+    let mut result: Vec<Option<usize>> = vec![None; rows];
+    let mut fixed = vec![false; rows];
+    let mut taken = vec![false; columns];
+    let mut adjusted = cost.to_vec();
+    // Each round decides one row: at most `rows` rounds.
+    for _ in 0..rows {
+        let mut clearest: Option<(usize, usize, f64)> = None;
+        for r in (0..rows).filter(|&r| !fixed[r]) {
+            let row = &cost[r * columns..(r + 1) * columns];
+            let (best, margin) = best_and_margin(row, &taken);
+            let (marker, last, side) = lasts[r];
+            // Markers clear on their own need no neighbours; ambiguous ones take the
+            // displacement of the neighbours they have moved alike with as a prior.
+            let neighbour = (margin < ANCHOR_MARGIN)
+                .then(|| {
+                    neighbour_displacement(
+                        anchors.iter().filter(|a| coherent(marker, a.marker)),
+                        last,
+                        side,
+                    )
+                })
+                .flatten();
+            let out = &mut adjusted[r * columns..(r + 1) * columns];
+            out.copy_from_slice(row);
+            if let Some((d, sigma)) = neighbour {
+                let expected = last + d;
+                for (o, p) in out.iter_mut().zip(places) {
+                    if o.is_finite() {
+                        let z2: f64 = (p - expected).norm_squared() / (sigma * sigma);
+                        *o += (0.5 * z2).min(NEIGHBOUR_CAP);
+                    }
+                }
+            }
+            let (best, margin) = if neighbour.is_some() {
+                best_and_margin(out, &taken)
+            } else {
+                (best, margin)
+            };
+            if let Some(j) = best
+                && margin >= ANCHOR_MARGIN
+                && clearest.is_none_or(|c| margin > c.2)
+            {
+                clearest = Some((r, j, margin));
+            }
+        }
+        let Some((r, j, _)) = clearest else { break };
+        fixed[r] = true;
+        taken[j] = true;
+        result[r] = Some(j);
+        anchors.push(Anchor {
+            marker: lasts[r].0,
+            last: lasts[r].1,
+            moved: places[j] - lasts[r].1,
+        });
+    }
+    // The rest, jointly, on the costs with their neighbour priors.
+    let free: Vec<usize> = (0..rows).filter(|&r| !fixed[r]).collect();
+    if !free.is_empty() {
+        let mut sub = Vec::with_capacity(free.len() * columns);
+        for &r in &free {
+            sub.extend(
+                adjusted[r * columns..(r + 1) * columns]
+                    .iter()
+                    .zip(&taken)
+                    .map(|(&c, &t)| if t { f64::INFINITY } else { c }),
+            );
+        }
+        let joint = assign(&sub, columns, &vec![UNMATCHED_COST; free.len()]);
+        for (&r, j) in free.iter().zip(joint) {
+            result[r] = j;
+        }
+    }
+    result
+}
+
+/// A marker decided in this frame: its last centre and how far it moved.
+struct Anchor {
+    marker: usize,
+    last: Point2<f64>,
+    moved: Vector2<f64>,
+}
+
+/// A row's cheapest free column (if cheaper than staying unassigned) and by how much it beats
+/// the next choice (another free column, or [`UNMATCHED_COST`]).
+fn best_and_margin(row: &[f64], taken: &[bool]) -> (Option<usize>, f64) {
+    let mut best: Option<(usize, f64)> = None;
+    let mut second = UNMATCHED_COST;
+    for (j, (&c, &t)) in row.iter().zip(taken).enumerate() {
+        if t || !c.is_finite() {
+            continue;
+        }
+        match best {
+            Some((_, b)) if c >= b => second = second.min(c),
+            _ => {
+                if let Some((_, b)) = best {
+                    second = second.min(b);
+                }
+                best = Some((j, c));
+            }
+        }
+    }
+    match best {
+        Some((j, b)) if b < UNMATCHED_COST => (Some(j), second - b),
+        _ => (None, 0.0),
+    }
+}
+
+/// The displacement this frame of the anchors near `last` (within
+/// [`NEIGHBOUR_RADIUS_WINDOWS`] windows), weighted by inverse squared distance, and how far
+/// to trust it (pixels): half a window, or more when the anchors disagree.
+fn neighbour_displacement<'a>(
+    anchors: impl Iterator<Item = &'a Anchor>,
+    last: Point2<f64>,
+    side: f64,
+) -> Option<(Vector2<f64>, f64)> {
+    let reach = NEIGHBOUR_RADIUS_WINDOWS * side;
+    let mut sum = Vector2::zeros();
+    let mut weight = 0.0;
+    let mut near = Vec::new();
+    for a in anchors {
+        let r = (a.last - last).norm();
+        if r < reach {
+            let w = 1.0 / (r * r).max(side * side);
+            sum += w * a.moved;
+            weight += w;
+            near.push((w, a.moved));
+        }
+    }
+    if weight <= 0.0 {
+        return None;
+    }
+    let mean = sum / weight;
+    let spread = near
+        .iter()
+        .map(|(w, d)| w * (d - mean).norm_squared())
+        .sum::<f64>()
+        / weight;
+    Some((mean, (0.5 * side).max(spread.sqrt())))
 }
 
 /// Remember a look-alike at `p`: seen again where it was (within [`STATIC_PX`]), it counts
