@@ -11,11 +11,17 @@
 //!   [`cam_shift`] (`meanShift`, `CamShift`, [`TermCriteria`]).
 //! - **The marker tracker** ([`Tracker`], [`TrackerConfig`]): many markers from the windows a
 //!   user drew on the first frame; hue (the paper), hue–saturation, RGB kernel (Bhattacharyya)
-//!   or gray models ([`AppearanceModel`]); a confidence and a [`TrackStatus`] per frame;
-//!   prediction, an enlarged search from four directions, exclusive assignment, coasting,
-//!   re-seeding ([`Tracker::set_center`]), depth gating ([`DepthView`]) and sub-pixel centres.
+//!   or gray models ([`AppearanceModel`]); a confidence and a [`TrackStatus`] per frame
+//!   ([`Track::summary`] counts them); a Kalman filter whose covariance sets the gate, with a
+//!   damped-swing fit that turns the prediction; detection of candidate blobs (streaks of a
+//!   blurred marker included) in a gate that widens while a marker is missing, up to the whole
+//!   frame; joint, exclusive assignment of candidates to markers; coasting, re-seeding
+//!   ([`Tracker::set_center`]), depth gating ([`DepthView`]) and sub-pixel centres.
 //!   [`TrackerConfig::paper`] is the paper's plain mean-shift, for comparison; [`synthetic`]
-//!   generates seeded pull-and-release sequences with ground truth and scores tracks.
+//!   generates seeded pull-and-release sequences with ground truth and scores tracks, and
+//!   [`stress`] is a second generator, written apart from the tracker, of 15 hard conditions
+//!   (blur, jumps, re-entry, occlusion, crossing, flicker, JPEG, 15–240 fps, look-alikes) with
+//!   separate tuning and evaluation seeds.
 //!
 //! Units and frames: pixels, with pixel centres at integer coordinates (`docs/conventions.md`);
 //! windows are [`PixelRect`]s (OpenCV's `Rect`: top-left corner and size).
@@ -62,6 +68,7 @@ mod rect;
 mod region;
 mod rng;
 pub mod stress;
+mod swing;
 pub mod synthetic;
 mod template;
 mod tracker;

@@ -38,6 +38,7 @@ use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
 use crate::model::{AppearanceModel, MarkerModel, marker_mask};
 use crate::rect::PixelRect;
 use crate::region::{Mode, PixelFilter, Region, Streak};
+use crate::swing::Swing;
 use crate::template::Template;
 
 /// Squared gate distance (2 degrees of freedom) inside which a measurement belongs to a
@@ -94,6 +95,11 @@ const ANCHOR_MARGIN: f64 = 3.0;
 const NEIGHBOUR_RADIUS_WINDOWS: f64 = 6.0;
 /// Largest cost of disagreeing with the neighbours' displacement.
 const NEIGHBOUR_CAP: f64 = 6.0;
+/// Reach (windows) within which a marker that is not found counts as merged with a found
+/// marker of the same look.
+const MERGED_WINDOWS: f64 = 0.75;
+/// Largest distance (8-bit RGB) between two markers' mean colours for them to look alike.
+const SAME_LOOK_RGB: f32 = 40.0;
 /// Rate of the running means of how alike two markers move.
 const COHERENCE_RATE: f64 = 0.2;
 /// Least running mean of the two markers' squared displacements (px^2 per frame) for their
@@ -555,6 +561,8 @@ struct MarkerState {
     init_size: (i32, i32),
     size: (i32, i32),
     filter: Kalman,
+    /// The swing learnt from the marker's recent track (turns the prediction).
+    swing: Swing,
     /// Acceleration noise of the motion model now (pixels per frame²).
     acceleration_px: f64,
     last_center: Point2<f64>,
@@ -810,6 +818,7 @@ impl Tracker {
             init_size: (w.width, w.height),
             size: (w.width, w.height),
             filter: Kalman::new(center, MEASUREMENT_PX, 0.1 * side),
+            swing: Swing::default(),
             acceleration_px: ACCELERATION_MIN_PX,
             last_center: center,
             reference: Reference {
@@ -1078,6 +1087,25 @@ impl Tracker {
             }
         }
 
+        // A marker not found where a found marker of its look now is has merged with it (two
+        // markers of one colour crossing): it moves with that marker until they part, rather
+        // than coasting away and being lost.
+        let merged: Vec<bool> = (0..n)
+            .map(|i| {
+                let m = &self.markers[i];
+                let reach = MERGED_WINDOWS * window_px(m);
+                results[i].is_none()
+                    && (0..n).any(|j| {
+                        j != i
+                            && same_look(m, &self.markers[j])
+                            && results[j]
+                                .as_ref()
+                                .is_some_and(|(q, _, _)| (q.center - predictions[i]).norm() < reach)
+                    })
+            })
+            .collect();
+
+        let frame_index = self.tracks.first().map_or(0, |t| t.observations.len()) as u64;
         for (i, result) in results.into_iter().enumerate() {
             let m = &mut self.markers[i];
             let observation = match result {
@@ -1087,7 +1115,7 @@ impl Tracker {
                     } else {
                         status
                     };
-                    let o = m.found(q, status, &self.config, depth);
+                    let o = m.found(q, status, &self.config, depth, frame_index);
 
                     m.learn_appearance(q.confidence, context);
                     if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
@@ -1101,6 +1129,7 @@ impl Tracker {
                     }
                     o
                 }
+                None if merged[i] => m.merged((width, height)),
                 None => m.missed(&self.config, (width, height)),
             };
             self.tracks[i].observations.push(observation);
@@ -1428,6 +1457,7 @@ impl Tracker {
         let m = &mut self.markers[i];
         let side = window_px(m);
         m.filter = Kalman::new(center, MEASUREMENT_PX, 0.1 * side);
+        m.swing.clear();
         m.acceleration_px = ACCELERATION_MIN_PX;
         m.last_center = center;
         m.misses = 0;
@@ -1594,7 +1624,15 @@ impl MarkerState {
                 self.filter.stop(0.0);
                 self.filter.predict(self.acceleration_px);
             }
-            MotionModel::ConstantVelocity { .. } => self.filter.predict(self.acceleration_px),
+            MotionModel::ConstantVelocity { .. } => {
+                let (p, v) = (self.filter.position, self.filter.velocity);
+                self.filter.predict(self.acceleration_px);
+                // A swing turns: the learnt acceleration bends the prediction.
+                if let Some(a) = self.swing.acceleration(p, v) {
+                    self.filter.position += a;
+                    self.filter.velocity += a;
+                }
+            }
         }
     }
 
@@ -1605,6 +1643,7 @@ impl MarkerState {
         status: TrackStatus,
         config: &TrackerConfig,
         depth: Option<&DepthView<'_>>,
+        frame: u64,
     ) -> Observation {
         let innovation = (q.center - self.filter.position).norm_squared();
         self.filter.update(q.center, MEASUREMENT_PX);
@@ -1641,6 +1680,7 @@ impl MarkerState {
         self.last_center = q.center;
         self.misses = 0;
         self.last_status = status;
+        self.swing.record(frame, q.center);
         Observation {
             center: Some(q.center),
             window: q.window,
@@ -1650,6 +1690,22 @@ impl MarkerState {
     }
 
     /// No measurement this frame: coast, then lose.
+    /// Not found, and merged with a marker of the same look: it coasts on its own motion
+    /// (the two cross) and the frame does not count as a miss, so that it is neither given
+    /// up while hidden in the other's blob nor looked for far away, and is taken up again
+    /// as soon as it shows.
+    fn merged(&mut self, (width, height): (u32, u32)) -> Observation {
+        self.filter.velocity *= COAST_VELOCITY_DECAY;
+        let pred = clamp_into(self.filter.position, width, height);
+        self.last_status = TrackStatus::Predicted;
+        Observation {
+            center: Some(pred),
+            window: PixelRect::centered_at(pred, self.size.0, self.size.1),
+            status: TrackStatus::Predicted,
+            confidence: 0.0,
+        }
+    }
+
     fn missed(&mut self, config: &TrackerConfig, (width, height): (u32, u32)) -> Observation {
         self.misses += 1;
         self.filter.velocity *= COAST_VELOCITY_DECAY;
@@ -1667,6 +1723,18 @@ impl MarkerState {
             confidence: 0.0,
         }
     }
+}
+
+/// Whether two markers look alike: one appearance model and colours within
+/// [`SAME_LOOK_RGB`] (gray targets: any two).
+fn same_look(a: &MarkerState, b: &MarkerState) -> bool {
+    let d2: f32 = a
+        .colour
+        .iter()
+        .zip(&b.colour)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum();
+    d2 <= SAME_LOOK_RGB * SAME_LOOK_RGB
 }
 
 /// Window size (the larger side) of a marker, pixels.

@@ -311,3 +311,46 @@ fn bad_input_is_a_typed_error() {
     t.update(&frame, None).expect("same size");
     assert_eq!(t.frames(), 2);
 }
+
+/// The stress generator's sequences on seeds no setting was tuned on: the goals on
+/// the conditions the tracker meets them on (the others are measured in
+/// `docs/validation.md`, not asserted here).
+#[test]
+fn stress_sequences_not_tuned_on_meet_the_goals() {
+    use meanshift_track::stress::{
+        Condition, EVALUATION_SEEDS, StressConfig, StressScene, score_stress,
+    };
+    let seed = EVALUATION_SEEDS.start;
+    for condition in [
+        Condition::Baseline,
+        Condition::LookAlikes,
+        Condition::Release240,
+    ] {
+        let scene = StressScene::new(&StressConfig::condition(condition, seed)).expect("preset");
+        let first = scene.frame(0).expect("frame 0");
+        let mut tracker =
+            Tracker::new(TrackerConfig::default(), &first, None, scene.inits()).expect("inits");
+        for f in 1..scene.frames() {
+            tracker
+                .update(&scene.frame(f).expect("in range"), None)
+                .expect("same size");
+        }
+        let s = score_stress(tracker.tracks(), &scene, TOLERANCE_PX, 8.0).expect("same shape");
+        let name = condition.name();
+        assert!(s.fraction_within() >= 0.99, "{name}: {s:?}");
+        assert!(s.longest_loss_frames <= 2, "{name}: {s:?}");
+        assert_eq!(s.identity_swaps, 0, "{name}: {s:?}");
+        // A found status means the marker: nothing reported found 8 px or more off.
+        assert_eq!(s.false_found, 0, "{name}: {s:?}");
+        // The summary counts every frame once.
+        let total: usize = tracker
+            .tracks()
+            .iter()
+            .map(|t| {
+                let m = t.summary();
+                m.tracked + m.recovered + m.predicted + m.lost + m.set
+            })
+            .sum();
+        assert_eq!(total, scene.frames() * scene.inits().len(), "{name}");
+    }
+}
