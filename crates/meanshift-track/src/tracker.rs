@@ -88,6 +88,11 @@ const MANOEUVRE_PRIOR: f64 = 0.1;
 /// Cost (negative log-likelihood, relative to a perfect candidate at the prediction) above
 /// which a marker rather stays unmatched.
 const UNMATCHED_COST: f64 = 12.0;
+/// Cost of taking, by a manoeuvre, a place that lies in another marker's normal gate.
+const OWNED_COST: f64 = 6.0;
+/// Distance (windows) within which candidates of different markers are one place: two
+/// markers cannot both be closer than this, so one place cannot go to two of them.
+const PLACE_SHARE: f64 = 0.5;
 /// Least lead (cost units, nats) of a marker's best place over its next choice for the marker
 /// to be decided on its own, before its neighbours: e^3, twenty times likelier.
 const ANCHOR_MARGIN: f64 = 3.0;
@@ -1271,8 +1276,18 @@ impl Tracker {
             // and wider while the marker stays unseen, up to the whole frame. The filter takes
             // the manoeuvre only if a candidate is taken.
             let wide = m.gate_var + manoeuvre_var(config, side, m.misses, frame_side);
-            let gate_px = (GATE_CHI2 * wide).sqrt().min(2.0 * frame_side);
             let pred = clamp_into(m.filter.position, width, height);
+            // A marker that has left the frame comes back across the border near where it
+            // left: its gate is the normal one around the border point, widened by a window
+            // per missed frame, not the whole frame (where it would take whatever looks like
+            // it on the far side).
+            let outside = (m.filter.position - pred).norm() > 0.5 * side;
+            let border_px = (GATE_CHI2 * m.gate_var).sqrt() + (m.misses as f64 + 1.0) * side;
+            let gate_px = if outside {
+                (GATE_CHI2 * wide).sqrt().min(border_px)
+            } else {
+                (GATE_CHI2 * wide).sqrt().min(2.0 * frame_side)
+            };
             // The quick pass's own measurement competes too (a marker half behind a twig).
             let mut found: Vec<Measured> = quick[i].iter().map(|q| q.measured).collect();
             if let Some(t) = &m.template {
@@ -1307,6 +1322,9 @@ impl Tracker {
                         .into_iter()
                         .take(MAX_CANDIDATES),
                 );
+            }
+            if outside {
+                found.retain(|c| (c.center - pred).norm() <= gate_px);
             }
             let mut with_context = Vec::with_capacity(found.len());
             for c in found {
@@ -1348,7 +1366,7 @@ impl Tracker {
             let side = window_px(&self.markers[c.marker]);
             let same = places
                 .iter()
-                .position(|(p, s)| (p - c.measured.center).norm() < 0.25 * side.min(*s));
+                .position(|(p, s)| (p - c.measured.center).norm() < PLACE_SHARE * side.min(*s));
             column.push(same.unwrap_or_else(|| {
                 places.push((c.measured.center, side));
                 places.len() - 1
@@ -1357,10 +1375,26 @@ impl Tracker {
         let rows = undecided.len();
         let cols = places.len();
         let mut cost = vec![f64::INFINITY; rows * cols];
+        // A place inside another undecided marker's normal gate is that marker's by motion:
+        // a colour marker that could reach it only by a manoeuvre pays for taking it. (Gray
+        // targets in rows are guided by their neighbours instead, which this would fight.)
+        let in_gate = |i: usize, p: Point2<f64>| {
+            let m = &self.markers[i];
+            (p - m.filter.position).norm_squared() <= GATE_CHI2 * m.gate_var
+        };
         for (c, &j) in candidates.iter().zip(&column) {
             if let Some(r) = undecided.iter().position(|&i| i == c.marker) {
+                let p = places[j].0;
+                let owned = self.markers[c.marker].template.is_none()
+                    && !in_gate(c.marker, p)
+                    && undecided.iter().any(|&o| {
+                        o != c.marker
+                            && same_look(&self.markers[o], &self.markers[c.marker])
+                            && in_gate(o, p)
+                    });
+                let extra = if owned { OWNED_COST } else { 0.0 };
                 let slot = &mut cost[r * cols + j];
-                *slot = slot.min(c.cost);
+                *slot = slot.min(c.cost + extra);
             }
         }
         let anchors: Vec<Anchor> = claimed
