@@ -88,6 +88,9 @@ const MANOEUVRE_PRIOR: f64 = 0.1;
 /// Cost (negative log-likelihood, relative to a perfect candidate at the prediction) above
 /// which a marker rather stays unmatched.
 const UNMATCHED_COST: f64 = 12.0;
+/// Distance (windows, plus one frame's motion) from the border within which a marker last
+/// seen there counts as having left the frame when predicted outside it.
+const BORDER_WINDOWS: f64 = 2.0;
 /// Cost of taking, by a manoeuvre, a place that lies in another marker's normal gate.
 const OWNED_COST: f64 = 6.0;
 /// Distance (windows) within which candidates of different markers are one place: two
@@ -1281,7 +1284,16 @@ impl Tracker {
             // left: its gate is the normal one around the border point, widened by a window
             // per missed frame, not the whole frame (where it would take whatever looks like
             // it on the far side).
-            let outside = (m.filter.position - pred).norm() > 0.5 * side;
+            // (Only a marker last seen near the border has left: one predicted out of the
+            // frame from the middle of it has a wrong velocity, and is searched everywhere.)
+            let border_gap = {
+                let c = m.last_center;
+                c.x.min(c.y)
+                    .min(f64::from(width) - c.x)
+                    .min(f64::from(height) - c.y)
+            };
+            let outside = (m.filter.position - pred).norm() > 0.5 * side
+                && border_gap < BORDER_WINDOWS * side + m.filter.velocity.norm();
             let border_px = (GATE_CHI2 * m.gate_var).sqrt() + (m.misses as f64 + 1.0) * side;
             let gate_px = if outside {
                 (GATE_CHI2 * wide).sqrt().min(border_px)
