@@ -221,11 +221,21 @@ fn track_folder(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         markers: tracker.tracks().iter().map(marker_out).collect(),
         timing: Timing { decode_s, track_s },
     };
-    eprintln!("marker  tracked  recovered  predicted  lost  longest loss (frames)");
+    let id_width = tracker
+        .tracks()
+        .iter()
+        .map(|t| t.id.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max("marker".len());
+    eprintln!(
+        "{:<id_width$}  tracked  recovered  predicted  lost  longest loss (frames)",
+        "marker"
+    );
     for track in tracker.tracks() {
         let s = track.summary();
         eprintln!(
-            "{:<6}  {:>7}  {:>9}  {:>9}  {:>4}  {:>12}",
+            "{:<id_width$}  {:>7}  {:>9}  {:>9}  {:>4}  {:>12}",
             track.id, s.tracked, s.recovered, s.predicted, s.lost, s.longest_loss_frames
         );
     }
