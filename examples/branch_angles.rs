@@ -71,7 +71,29 @@ fn parse_args() -> Result<Option<Option<Args>>, String> {
     }
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+/// Errors are printed as their messages (and the causes under them), not as debug dumps.
+fn main() -> std::process::ExitCode {
+    match run_main() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("branch_angles: {e}");
+            // Causes the message does not already say.
+            let mut said = e.to_string();
+            let mut cause = e.source();
+            while let Some(c) = cause {
+                let text = c.to_string();
+                if !said.contains(&text) {
+                    eprintln!("  caused by: {text}");
+                    said.push_str(&text);
+                }
+                cause = c.source();
+            }
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     match parse_args()? {
         None => {
             println!("{USAGE}");

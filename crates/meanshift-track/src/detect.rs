@@ -24,7 +24,41 @@ pub(crate) struct Blob {
     label: u32,
 }
 
+/// Add pixel `(x, y)` of weight `v` to a blob's sums (count, weight, first and second
+/// moments) and bounds (min x, min y, max x, max y).
+fn accumulate(s: &mut [f64; 7], b: &mut [i32; 4], x: i32, y: i32, v: f64) {
+    let (xf, yf) = (f64::from(x), f64::from(y));
+    s[0] += 1.0;
+    s[1] += v;
+    s[2] += v * xf;
+    s[3] += v * yf;
+    s[4] += v * xf * xf;
+    s[5] += v * xf * yf;
+    s[6] += v * yf * yf;
+    b[0] = b[0].min(x);
+    b[1] = b[1].min(y);
+    b[2] = b[2].max(x);
+    b[3] = b[3].max(y);
+}
+
 impl Blob {
+    /// The blob of sums and bounds made by [`accumulate`] (positive weight).
+    fn from_sums(s: &[f64; 7], b: &[i32; 4], label: u32) -> Self {
+        let (cx, cy) = (s[2] / s[1], s[3] / s[1]);
+        Blob {
+            pixels: s[0] as usize,
+            mass: s[1],
+            centroid: Point2::new(cx, cy),
+            bounds: PixelRect::new(b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1),
+            spread: [
+                s[4] / s[1] - cx * cx,
+                s[5] / s[1] - cx * cy,
+                s[6] / s[1] - cy * cy,
+            ],
+            label,
+        }
+    }
+
     /// The two blobs as one (pooled moments): the fragments of a marker split by a twig.
     pub(crate) fn merged(&self, other: &Blob) -> Blob {
         let m = self.mass + other.mass;
@@ -183,20 +217,7 @@ impl Labeler {
                 let root = find(&mut self.parent, l) as usize;
                 let v = f64::from(at(x, y));
                 let (xi, yi) = (area.x + x as i32, area.y + y as i32);
-                let (xf, yf) = (f64::from(xi), f64::from(yi));
-                let s = &mut self.sums[root];
-                s[0] += 1.0;
-                s[1] += v;
-                s[2] += v * xf;
-                s[3] += v * yf;
-                s[4] += v * xf * xf;
-                s[5] += v * xf * yf;
-                s[6] += v * yf * yf;
-                let b = &mut self.bounds[root];
-                b[0] = b[0].min(xi);
-                b[1] = b[1].min(yi);
-                b[2] = b[2].max(xi);
-                b[3] = b[3].max(yi);
+                accumulate(&mut self.sums[root], &mut self.bounds[root], xi, yi, v);
             }
         }
         let mut out = Vec::new();
@@ -207,19 +228,7 @@ impl Labeler {
             {
                 continue;
             }
-            let (cx, cy) = (s[2] / s[1], s[3] / s[1]);
-            out.push(Blob {
-                pixels: s[0] as usize,
-                mass: s[1],
-                centroid: Point2::new(cx, cy),
-                bounds: PixelRect::new(b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1),
-                spread: [
-                    s[4] / s[1] - cx * cx,
-                    s[5] / s[1] - cx * cy,
-                    s[6] / s[1] - cy * cy,
-                ],
-                label: root as u32,
-            });
+            out.push(Blob::from_sums(s, b, root as u32));
         }
         out.sort_by(|a, b| b.mass.total_cmp(&a.mass));
         out
@@ -328,19 +337,7 @@ impl Labeler {
                                 .total_cmp(&(b.1 - p).norm_squared())
                         })
                         .map_or(0, |(k, _)| k);
-                    let s = &mut parts[k];
-                    s[0] += 1.0;
-                    s[1] += v;
-                    s[2] += v * p.x;
-                    s[3] += v * p.y;
-                    s[4] += v * p.x * p.x;
-                    s[5] += v * p.x * p.y;
-                    s[6] += v * p.y * p.y;
-                    let b = &mut bounds[k];
-                    b[0] = b[0].min(x);
-                    b[1] = b[1].min(y);
-                    b[2] = b[2].max(x);
-                    b[3] = b[3].max(y);
+                    accumulate(&mut parts[k], &mut bounds[k], x, y, v);
                 }
             }
             if round + 1 < ROUNDS {
@@ -365,19 +362,7 @@ impl Labeler {
                         label: blob.label,
                     };
                 }
-                let (cx, cy) = (s[2] / s[1], s[3] / s[1]);
-                Blob {
-                    pixels: s[0] as usize,
-                    mass: s[1],
-                    centroid: Point2::new(cx, cy),
-                    bounds: PixelRect::new(b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1),
-                    spread: [
-                        s[4] / s[1] - cx * cx,
-                        s[5] / s[1] - cx * cy,
-                        s[6] / s[1] - cy * cy,
-                    ],
-                    label: blob.label,
-                }
+                Blob::from_sums(s, b, blob.label)
             })
             .collect()
     }
