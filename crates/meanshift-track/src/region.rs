@@ -83,11 +83,10 @@ impl Streak<'_> {
     }
 }
 
-/// What a pixel must pass to count, besides the model: the marker's own HSV limits, a depth
-/// gate, and rectangles other markers hold.
+/// What a pixel must pass to count, besides the model and its mask (in the [`Lookup`]): a
+/// depth gate, and rectangles other markers hold.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct PixelFilter<'a> {
-    pub(crate) mask: &'a ChannelRange,
     /// `(gate, marker depth, depth map)`: pixels farther than the gate from the marker's
     /// depth do not count.
     pub(crate) depth: Option<(f64, f64, DepthView<'a>)>,
@@ -120,8 +119,6 @@ pub(crate) struct Region {
     p: Vec<f64>,
     /// Pixel scratch of a kernel step.
     pixels: Vec<(i32, i32, u32, f64)>,
-    /// The per-pixel lookup of the latest fill.
-    lookup: Lookup,
 }
 
 /// A model and a mask as table lookups: per feature channel and value, the histogram bin's
@@ -129,8 +126,8 @@ pub(crate) struct Region {
 /// is outside the histogram's range or the mask. The three offsets of a pixel are summed:
 /// any sum of `total` or more reads the padding of `values` (weight 0, no bin), so a pixel is
 /// weighed without a branch.
-#[derive(Debug, Default)]
-struct Lookup {
+#[derive(Debug, Default, Clone)]
+pub(crate) struct Lookup {
     tables: [Vec<u32>; 3],
     /// Weight per bin, padded with zeros to `3 total + 1` entries.
     values: Vec<f32>,
@@ -139,6 +136,22 @@ struct Lookup {
 }
 
 impl Lookup {
+    /// The lookup of a marker's model and mask (the mask applies to the HSV models only);
+    /// both are fixed once the marker is learned, so it is built once per marker.
+    pub(crate) fn new(
+        appearance: &AppearanceModel,
+        model: &MarkerModel,
+        mask: &ChannelRange,
+    ) -> Self {
+        let hsv = matches!(
+            appearance,
+            AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. }
+        );
+        let mut lookup = Self::default();
+        lookup.build(model, hsv.then_some(mask));
+        lookup
+    }
+
     fn build(&mut self, model: &MarkerModel, mask: Option<&ChannelRange>) {
         let (hist, weights): (&Histogram, &mut dyn Iterator<Item = f32>) = match model {
             MarkerModel::Projected { projector } => (
@@ -197,6 +210,7 @@ impl Region {
         &mut self,
         appearance: &AppearanceModel,
         model: &MarkerModel,
+        lookup: &Lookup,
         frame: &RgbImage,
         rect: PixelRect,
         filter: &PixelFilter<'_>,
@@ -211,18 +225,17 @@ impl Region {
         if kernel {
             self.bins.reserve(area);
         }
-        let hsv = matches!(
-            appearance,
-            AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. }
-        );
-        self.lookup.build(model, hsv.then_some(filter.mask));
         match appearance {
             AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. } => {
-                self.fill_rows(frame, rect, filter, kernel, hsv_converter());
+                self.fill_rows(lookup, frame, rect, filter, kernel, hsv_converter());
             }
-            AppearanceModel::Rgb { .. } => self.fill_rows(frame, rect, filter, kernel, |p| p),
+            AppearanceModel::Rgb { .. } => {
+                self.fill_rows(lookup, frame, rect, filter, kernel, |p| p);
+            }
             AppearanceModel::Gray { .. } => {
-                self.fill_rows(frame, rect, filter, kernel, |p| [rgb_to_gray(p), 0, 0]);
+                self.fill_rows(lookup, frame, rect, filter, kernel, |p| {
+                    [rgb_to_gray(p), 0, 0]
+                });
             }
         }
     }
@@ -231,6 +244,7 @@ impl Region {
     #[inline(always)]
     fn fill_rows(
         &mut self,
+        lookup: &Lookup,
         frame: &RgbImage,
         rect: PixelRect,
         filter: &PixelFilter<'_>,
@@ -248,7 +262,7 @@ impl Region {
             tables: [t0, t1, t2],
             values,
             bins,
-        } = &self.lookup;
+        } = lookup;
         for y in rect.y..rect.bottom() as i32 {
             let start = y as usize * stride;
             let row = &raw[start + rect.x as usize * 3..start + rect.right() as usize * 3];

@@ -37,7 +37,7 @@ use crate::kalman::Kalman;
 use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
 use crate::model::{AppearanceModel, MarkerModel, marker_mask};
 use crate::rect::PixelRect;
-use crate::region::{Mode, PixelFilter, Region, Streak};
+use crate::region::{Lookup, Mode, PixelFilter, Region, Streak};
 use crate::swing::Swing;
 use crate::template::Template;
 
@@ -565,7 +565,8 @@ struct Distractor {
 struct MarkerState {
     id: String,
     model: MarkerModel,
-    mask: ChannelRange,
+    /// The model and the mask as per-pixel table lookups (built once).
+    lookup: Lookup,
     init_size: (i32, i32),
     size: (i32, i32),
     filter: Kalman,
@@ -817,12 +818,13 @@ impl Tracker {
             config.background_weighting,
         )?;
         let mask = marker_mask(frame, w, &config.model, &config.hsv_mask);
+        let lookup = Lookup::new(&config.model, &model, &mask);
         let center = w.center();
         let side = f64::from(w.width.max(w.height));
         let mut state = MarkerState {
             id: init.id.clone(),
             model,
-            mask,
+            lookup,
             init_size: (w.width, w.height),
             size: (w.width, w.height),
             filter: Kalman::new(center, MEASUREMENT_PX, 0.1 * side),
@@ -1814,12 +1816,11 @@ fn fill(
             colour: m.colour,
         });
     let filter = PixelFilter {
-        mask: &m.mask,
         depth: gate,
         masked,
         streak,
     };
-    region.fill(&config.model, &m.model, frame, rect, &filter);
+    region.fill(&config.model, &m.model, &m.lookup, frame, rect, &filter);
 }
 
 /// Learn the marker's blob in its first window: threshold, pixel count, width.
