@@ -1,33 +1,150 @@
-//! Signal files: a header line, then `t,value` rows (seconds, any unit); an empty value is a
-//! missing sample.
+//! Signal files: rows of comma-separated numbers, by default `t,value` (seconds, any unit); an
+//! empty value is a missing sample. A first line that is not all numbers is a header.
+//! [`CsvLayout`] picks another value column, or gives a sample rate for files without a time
+//! column (many loggers write one column per channel and state the rate elsewhere).
 
 use std::path::Path;
 
 use crate::error::{ModalError, Result};
 use crate::signal::Signal;
 
-/// Parse a signal CSV. The first line is a header and is skipped; blank lines are skipped;
-/// each other line holds a timestamp in seconds and a value (empty for a missing sample),
-/// separated by a comma. Timestamps must increase strictly.
+/// Where the timestamps and the values are in each row.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CsvLayout {
+    /// Column of the timestamps (0-based), or `None` when the file has none and the samples
+    /// are `1 / sample_rate_hz` apart from t = 0.
+    pub time_column: Option<usize>,
+    /// Sample rate, hertz, when there is no time column.
+    pub sample_rate_hz: Option<f64>,
+    /// Column of the values (0-based).
+    pub value_column: usize,
+}
+
+impl Default for CsvLayout {
+    /// `t,value`: timestamps in column 0, values in column 1.
+    fn default() -> Self {
+        Self {
+            time_column: Some(0),
+            sample_rate_hz: None,
+            value_column: 1,
+        }
+    }
+}
+
+/// Largest column index accepted (a wider row is not a signal file).
+const MAX_COLUMN: usize = 1 << 16;
+
+impl CsvLayout {
+    /// Values in `value_column` sampled at `sample_rate_hz`, no time column.
+    #[must_use]
+    pub fn sampled(sample_rate_hz: f64, value_column: usize) -> Self {
+        Self {
+            time_column: None,
+            sample_rate_hz: Some(sample_rate_hz),
+            value_column,
+        }
+    }
+
+    /// Check that the layout says where time comes from exactly once.
+    ///
+    /// # Errors
+    /// [`ModalError::InvalidConfig`] naming the field.
+    pub fn validate(&self) -> Result<()> {
+        match (self.time_column, self.sample_rate_hz) {
+            (Some(_), Some(r)) => Err(ModalError::InvalidConfig {
+                name: "sample_rate_hz",
+                value: r,
+                expected: "absent when the file has a time column",
+            }),
+            (None, None) => Err(ModalError::InvalidConfig {
+                name: "sample_rate_hz",
+                value: f64::NAN,
+                expected: "given when the file has no time column",
+            }),
+            (None, Some(r)) if !(r.is_finite() && r > 0.0) => Err(ModalError::InvalidConfig {
+                name: "sample_rate_hz",
+                value: r,
+                expected: "positive and finite",
+            }),
+            (Some(t), _) if t == self.value_column => Err(ModalError::InvalidConfig {
+                name: "value_column",
+                value: self.value_column as f64,
+                expected: "different from the time column",
+            }),
+            _ if self.value_column > MAX_COLUMN => Err(ModalError::InvalidConfig {
+                name: "value_column",
+                value: self.value_column as f64,
+                expected: "at most 65536",
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// Columns a row must have.
+    fn columns_needed(&self) -> usize {
+        self.value_column.max(self.time_column.unwrap_or(0)) + 1
+    }
+}
+
+/// Parse a signal CSV laid out as `t,value` ([`CsvLayout::default`]). A first line whose
+/// fields are not all numbers is a header and is skipped; blank lines are skipped; every
+/// other line holds a timestamp in seconds and a value (empty for a missing sample).
+/// Timestamps must increase strictly.
 ///
 /// # Errors
 /// [`ModalError::Csv`] with the line number for a line without two fields, a field that is
 /// not a number, or a NaN or infinite number; the errors of [`Signal::new`].
 pub fn parse_signal_csv(text: &str) -> Result<Signal> {
+    parse_signal_csv_with(text, &CsvLayout::default())
+}
+
+/// Parse a signal CSV with the columns of `layout`. Rows may hold more columns than the
+/// layout uses; every row must hold the same number.
+///
+/// # Errors
+/// [`ModalError::InvalidConfig`] for a layout that does not validate; [`ModalError::Csv`]
+/// with the line number for a row with too few or a changing number of fields, a field
+/// that is not a number, or a NaN or infinite number; the errors of [`Signal::new`].
+pub fn parse_signal_csv_with(text: &str, layout: &CsvLayout) -> Result<Signal> {
+    layout.validate()?;
+    let needed = layout.columns_needed();
     let mut times = Vec::new();
     let mut values = Vec::new();
-    for (index, line) in text.lines().enumerate().skip(1) {
+    let mut width = None;
+    let mut first = true;
+    for (index, line) in text.lines().enumerate() {
         let line_no = index + 1;
         let line = line.trim();
         if line.is_empty() {
             continue;
         }
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() != 2 {
+        if std::mem::take(&mut first)
+            && fields
+                .iter()
+                .any(|f| !f.is_empty() && f.parse::<f64>().is_err())
+        {
+            continue; // the header
+        }
+        if fields.len() < needed {
             return Err(ModalError::Csv {
                 line: line_no,
-                message: format!("expected 2 fields `t,value`, found {}", fields.len()),
+                message: format!(
+                    "expected at least {needed} fields ({}), found {}",
+                    describe(layout),
+                    fields.len()
+                ),
             });
+        }
+        match width {
+            None => width = Some(fields.len()),
+            Some(w) if w != fields.len() => {
+                return Err(ModalError::Csv {
+                    line: line_no,
+                    message: format!("{} fields where the rows above have {w}", fields.len()),
+                });
+            }
+            Some(_) => {}
         }
         let number = |s: &str, what: &str| -> Result<f64> {
             let v: f64 = s.parse().map_err(|_| ModalError::Csv {
@@ -43,26 +160,52 @@ pub fn parse_signal_csv(text: &str) -> Result<Signal> {
                 })
             }
         };
-        times.push(number(fields[0], "time")?);
-        values.push(if fields[1].is_empty() {
+        if let Some(c) = layout.time_column {
+            times.push(number(fields[c], "time")?);
+        }
+        let v = fields[layout.value_column];
+        values.push(if v.is_empty() {
             None
         } else {
-            Some(number(fields[1], "value")?)
+            Some(number(v, "value")?)
         });
     }
-    Signal::new(times, values)
+    match layout.sample_rate_hz {
+        Some(rate) if layout.time_column.is_none() => Signal::uniform(rate, values),
+        _ => Signal::new(times, values),
+    }
 }
 
-/// Read a signal CSV file, see [`parse_signal_csv`].
+/// What the layout expects of a row, for messages.
+fn describe(layout: &CsvLayout) -> String {
+    match layout.time_column {
+        Some(t) => format!(
+            "time in column {t}, value in column {}",
+            layout.value_column
+        ),
+        None => format!("value in column {}", layout.value_column),
+    }
+}
+
+/// Read a signal CSV file laid out as `t,value`, see [`parse_signal_csv`].
 ///
 /// # Errors
 /// [`ModalError::Io`] when the file cannot be read; the errors of [`parse_signal_csv`].
 pub fn read_signal_csv(path: &Path) -> Result<Signal> {
+    read_signal_csv_with(path, &CsvLayout::default())
+}
+
+/// Read a signal CSV file with the columns of `layout`, see [`parse_signal_csv_with`].
+///
+/// # Errors
+/// [`ModalError::Io`] when the file cannot be read or is not UTF-8 text; the errors of
+/// [`parse_signal_csv_with`].
+pub fn read_signal_csv_with(path: &Path, layout: &CsvLayout) -> Result<Signal> {
     let text = std::fs::read_to_string(path).map_err(|source| ModalError::Io {
         path: path.display().to_string(),
         source,
     })?;
-    parse_signal_csv(&text)
+    parse_signal_csv_with(&text, layout)
 }
 
 /// Write a signal as CSV (`t,value`, empty for a missing sample), full precision.
@@ -96,6 +239,36 @@ mod tests {
             matches!(e, ModalError::NonIncreasingTime { index: 1, .. }),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_headerless_file_loses_no_row_and_columns_can_be_chosen() {
+        // A logger file: no header, no time column, one column per channel.
+        let text = "4.782,4.968\n4.781,4.967\n4.779,4.966\n";
+        let s = parse_signal_csv_with(text, &CsvLayout::sampled(20.0, 1)).unwrap();
+        assert_eq!(s.values(), &[Some(4.968), Some(4.967), Some(4.966)]);
+        assert_eq!(s.times_s(), &[0.0, 0.05, 0.1]);
+        // `t,value` without a header: the first row is data.
+        let s = parse_signal_csv("0,1\n0.1,2\n").unwrap();
+        assert_eq!(s.values(), &[Some(1.0), Some(2.0)]);
+        let layout = CsvLayout {
+            value_column: 2,
+            ..CsvLayout::default()
+        };
+        let s = parse_signal_csv_with("t,x,y\n0,1,5\n0.1,2,6\n", &layout).unwrap();
+        assert_eq!(s.values(), &[Some(5.0), Some(6.0)]);
+        let e = parse_signal_csv_with("0,1\n0.1,2\n", &layout).unwrap_err();
+        assert!(matches!(e, ModalError::Csv { line: 1, .. }), "{e}");
+        let e = parse_signal_csv_with("0,1,5\n0.1,2\n", &CsvLayout::default()).unwrap_err();
+        assert!(matches!(e, ModalError::Csv { line: 2, .. }), "{e}");
+        let bad = CsvLayout {
+            value_column: 0,
+            ..CsvLayout::default()
+        };
+        assert!(matches!(
+            parse_signal_csv_with("0,1\n", &bad),
+            Err(ModalError::InvalidConfig { .. })
+        ));
     }
 
     proptest! {

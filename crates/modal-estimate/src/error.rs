@@ -120,6 +120,31 @@ pub enum ModalError {
         /// The step.
         what: &'static str,
     },
+    /// A value so far from the rest of the record that it cannot be a measurement (a
+    /// corrupt sample, a sentinel such as 1e308, a unit mix-up).
+    #[error(
+        "value {index} (t = {time_s} s) is {value}, {spreads:.1e} times the record's typical deviation from its median: a corrupt sample? Remove it or leave it empty (missing)"
+    )]
+    Outlier {
+        /// Sample index.
+        index: usize,
+        /// Its timestamp, seconds.
+        time_s: f64,
+        /// The value.
+        value: f64,
+        /// Its distance from the median in median absolute deviations.
+        spreads: f64,
+    },
+    /// A size computed from the input beyond what the routine accepts.
+    #[error("{what}: {count} is more than the limit of {limit}")]
+    TooLarge {
+        /// What would be that large, and why.
+        what: String,
+        /// The size asked for.
+        count: f64,
+        /// The largest accepted.
+        limit: usize,
+    },
     /// A malformed line in a signal CSV file.
     #[error("line {line}: {message}")]
     Csv {

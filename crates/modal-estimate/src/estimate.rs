@@ -24,6 +24,16 @@ const AMBIENT_MAX_DECAY_RATIO: f64 = 3.0;
 /// decrement averages segments of 10 cycles and needs many of them.
 const AMBIENT_MIN_CYCLES: f64 = 200.0;
 
+/// Ambient records are high-passed above this (a 10-minute period: Jackson et al. 2021,
+/// "The motion of trees in the wind: a data synthesis", advise it against sensor drift).
+const AMBIENT_DRIFT_HZ: f64 = 1.0 / 600.0;
+
+/// Random decrement averages segments of 10 cycles and needs 4 of them: 40 cycles.
+const AMBIENT_RD_CYCLES: f64 = 40.0;
+
+/// An ambient answer more than this fraction from the record's sway peak is doubtful.
+const FAR_FROM_PEAK: f64 = 0.15;
+
 /// A further mode must lower the Bayesian information criterion by this much on top of its
 /// parameter cost ("very strong" evidence on the Kass & Raftery scale).
 const BIC_MARGIN: f64 = 10.0;
@@ -228,6 +238,22 @@ pub enum Warning {
         /// Random-decrement segments averaged.
         triggers: usize,
     },
+    /// The mode found is far from the record's spectral peak.
+    FarFromPeak {
+        /// The mode's frequency, hertz.
+        frequency_hz: f64,
+        /// The peak's, hertz.
+        peak_hz: f64,
+    },
+    /// A mode outside the band searched (the fit or the spectrum's edge pulled it out).
+    OutsideBand {
+        /// The mode's frequency, hertz.
+        frequency_hz: f64,
+        /// Lower band edge, hertz.
+        low_hz: f64,
+        /// Upper band edge, hertz.
+        high_hz: f64,
+    },
 }
 
 impl fmt::Display for Warning {
@@ -272,6 +298,21 @@ impl fmt::Display for Warning {
             Self::Ambient { triggers } => write!(
                 f,
                 "no free decay: treated as an ambient record (random decrement over {triggers} triggers)"
+            ),
+            Self::FarFromPeak {
+                frequency_hz,
+                peak_hz,
+            } => write!(
+                f,
+                "the mode found ({frequency_hz:.4} Hz) is far from the record's spectral peak ({peak_hz:.4} Hz): check the band (--band) and the column"
+            ),
+            Self::OutsideBand {
+                frequency_hz,
+                low_hz,
+                high_hz,
+            } => write!(
+                f,
+                "a mode at {frequency_hz:.4} Hz lies outside the band searched ({low_hz:.4}..{high_hz:.4} Hz)"
             ),
         }
     }
@@ -351,6 +392,96 @@ fn search_band(signal: &Signal, config: &EstimateConfig) -> Result<(f64, f64)> {
 pub fn estimate(signal: &Signal, config: &EstimateConfig) -> Result<Estimate> {
     config.validate()?;
     signal.check_usable("modal estimation", 8)?;
+    // Every step below (spectra, Hankel products, least squares) squares the values: on a
+    // record in units of 1e155 they overflow and the SVD never converges, in units of 1e-160
+    // they underflow. The estimate runs on the record centred and scaled to a unit spread,
+    // and the amplitudes are scaled back; frequency and damping do not depend on the unit.
+    let scale = ValueScale::of(signal)?;
+    let mut est = estimate_normalised(&scale.apply(signal)?, config)?;
+    scale.restore(&mut est);
+    Ok(est)
+}
+
+/// A normalised value further from the record's centre than this many spreads is not a
+/// measurement: no sensor has a dynamic range of 1e9 (180 dB; a 24-bit converter has 1.7e7).
+const OUTLIER_SPREADS: f64 = 1e9;
+
+/// Centre and spread of a record's values, for normalising them.
+#[derive(Debug, Clone, Copy)]
+struct ValueScale {
+    centre: f64,
+    spread: f64,
+}
+
+impl ValueScale {
+    /// The median and the median absolute deviation from it (the largest deviation where
+    /// more than half the samples sit exactly at the median, as on a noiseless hold).
+    fn of(signal: &Signal) -> Result<Self> {
+        let mut v: Vec<f64> = signal.values().iter().flatten().copied().collect();
+        let centre = median_in_place(&mut v);
+        let mut dev: Vec<f64> = v.iter().map(|x| (x - centre).abs()).collect();
+        let mut spread = median_in_place(&mut dev);
+        if !(spread > 0.0 && spread.is_finite()) {
+            spread = dev.iter().copied().fold(0.0, f64::max);
+        }
+        if !(spread > 0.0 && spread.is_finite()) {
+            return Err(ModalError::Constant { value: centre });
+        }
+        Ok(Self { centre, spread })
+    }
+
+    /// The record centred and divided by the spread.
+    ///
+    /// # Errors
+    /// [`ModalError::Outlier`] for a value more than [`OUTLIER_SPREADS`] from the centre.
+    fn apply(&self, signal: &Signal) -> Result<Signal> {
+        let times = signal.times_s();
+        let mut values = Vec::with_capacity(signal.len());
+        for (index, v) in signal.values().iter().enumerate() {
+            values.push(match *v {
+                None => None,
+                Some(v) => {
+                    let z = (v - self.centre) / self.spread;
+                    if z.is_nan() || z.abs() > OUTLIER_SPREADS {
+                        return Err(ModalError::Outlier {
+                            index,
+                            time_s: times[index],
+                            value: v,
+                            spreads: z.abs(),
+                        });
+                    }
+                    Some(z)
+                }
+            });
+        }
+        Signal::new(times.to_vec(), values)
+    }
+
+    /// Amplitudes and residuals back in the record's unit.
+    fn restore(&self, est: &mut Estimate) {
+        let s = self.spread;
+        for m in &mut est.modes {
+            m.amplitude *= s;
+            m.amplitude_std = m.amplitude_std.map(|a| a * s);
+        }
+        est.residual_rms = est.residual_rms.map(|r| r * s);
+        if let Some(hp) = est.half_power.as_mut() {
+            hp.peak_value *= s;
+        }
+    }
+}
+
+/// The median of `v` (reordered), 0 for an empty slice.
+fn median_in_place(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mid = v.len() / 2;
+    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
+}
+
+fn estimate_normalised(signal: &Signal, config: &EstimateConfig) -> Result<Estimate> {
     let (low_hz, high_hz) = search_band(signal, config)?;
     let uniform = signal.resample_uniform(None)?;
     let mut warnings = Vec::new();
@@ -390,21 +521,80 @@ pub fn estimate(signal: &Signal, config: &EstimateConfig) -> Result<Estimate> {
             &mut warnings,
         )?,
         _ => {
+            let mut decay_warnings = Vec::new();
             if config.segment.detect_release && release.is_none() {
-                warnings.push(Warning::NoRelease);
+                decay_warnings.push(Warning::NoRelease);
             }
-            free_decay(
+            let decay = free_decay(
                 signal,
                 release.map(|r| r.time_s),
                 guess_hz,
                 (low_hz, high_hz),
                 config,
-                &mut warnings,
-            )?
+                &mut decay_warnings,
+            );
+            // A long record (10 minutes or more, and 200 cycles of its sway peak) chosen as a
+            // free decay by its envelope (a gust, then calm) whose decay fit has no mode near
+            // the record's sway peak is wind sway after all.
+            // (The peak is looked for down to 40 cycles per record, so that a short record's
+            // peak is its decay's mode, not noise above the 200-cycle floor.)
+            let sway_hz = if config.method == Method::Auto {
+                let forced = EstimateConfig {
+                    method: Method::Ambient,
+                    ..*config
+                };
+                sway_peak(&uniform, guess_hz, low_hz, high_hz, &forced).1
+            } else {
+                None
+            };
+            let duration_s = signal.duration_s();
+            let long = duration_s >= 1.0 / AMBIENT_DRIFT_HZ
+                && sway_hz.is_some_and(|f| f * duration_s >= AMBIENT_MIN_CYCLES);
+            let inconsistent = match (&decay, sway_hz) {
+                (Ok(e), Some(f)) => !e
+                    .modes
+                    .iter()
+                    .any(|m| (m.frequency_hz / f - 1.0).abs() <= FAR_FROM_PEAK),
+                (Ok(_), None) => false,
+                (Err(_), _) => true,
+            };
+            if config.method == Method::Auto && inconsistent && long {
+                let mut ambient_warnings = Vec::new();
+                match ambient_estimate(
+                    &uniform,
+                    signal,
+                    guess_hz,
+                    low_hz,
+                    high_hz,
+                    config,
+                    &mut ambient_warnings,
+                ) {
+                    Ok(e) => {
+                        warnings.append(&mut ambient_warnings);
+                        e
+                    }
+                    Err(_) => {
+                        warnings.append(&mut decay_warnings);
+                        decay?
+                    }
+                }
+            } else {
+                warnings.append(&mut decay_warnings);
+                decay?
+            }
         }
     };
     if let Some(seg) = est.segment.as_mut() {
         seg.release = release;
+    }
+    for m in &est.modes {
+        if !(m.frequency_hz >= low_hz * (1.0 - 1e-9) && m.frequency_hz <= high_hz * (1.0 + 1e-9)) {
+            warnings.push(Warning::OutsideBand {
+                frequency_hz: m.frequency_hz,
+                low_hz,
+                high_hz,
+            });
+        }
     }
     est.method = config.method;
     est.warnings = warnings;
@@ -658,7 +848,7 @@ fn fit_modes(
     warnings: &mut Vec<Warning>,
 ) -> Result<Fit> {
     let kmax = config.modes.unwrap_or(config.max_modes);
-    let guesses = starting_poles(part, t_ref, f0, band, kmax, config.drift);
+    let mut guesses = starting_poles(part, t_ref, f0, band, kmax, config.drift);
     let (t, y) = part.present();
     let b = bounds(part, band);
     if let Some(k) = config.modes {
@@ -677,21 +867,37 @@ fn fit_modes(
             config.drift,
         );
     }
+    if guesses.is_empty() {
+        return Err(ModalError::NoPeak {
+            low_hz: band.0,
+            high_hz: band.1,
+        });
+    }
     let mut best = fit(&t, &y, t_ref, &guesses[..1], &b, config.drift)?;
     let n = t.len() as f64;
     let bic_gain_needed = 4.0 * n.ln() + BIC_MARGIN;
     for k in 2..=kmax.min(guesses.len()) {
-        // A cheap look first: what the next pole explains of the residual at fixed decay and
-        // frequency. Not even half the needed gain there, and the full fit is not tried.
+        // A cheap look first: what each pole not yet used explains of the residual at fixed
+        // decay and frequency; the one that explains most is tried next. Not even half the
+        // needed gain there, and the full fit is not tried.
         let resid = crate::fit::residuals(&t, &y, t_ref, &best.params, config.drift);
         let before: f64 = resid.iter().map(|r| r * r).sum();
-        let explained = linear_amplitudes(&t, &resid, t_ref, &guesses[k - 1..k], false)
-            .map_or(0.0, |p| {
-                before - crate::fit::residual_sum(&t, &resid, t_ref, &p, false)
-            });
-        if explained / (best.rss / n) < 0.5 * bic_gain_needed {
+        let (next, explained) = (k - 1..guesses.len())
+            .map(|j| {
+                let gain = linear_amplitudes(&t, &resid, t_ref, &guesses[j..=j], false)
+                    .map_or(0.0, |p| {
+                        before - crate::fit::residual_sum(&t, &resid, t_ref, &p, false)
+                    });
+                (j, gain)
+            })
+            .fold(
+                (k - 1, f64::NEG_INFINITY),
+                |a, b| if b.1 > a.1 { b } else { a },
+            );
+        if explained.is_nan() || explained / (best.rss / n) < 0.5 * bic_gain_needed {
             break;
         }
+        guesses.swap(k - 1, next);
         let Ok(candidate) = fit(&t, &y, t_ref, &guesses[..k], &b, config.drift) else {
             break;
         };
@@ -716,6 +922,60 @@ fn modes_are_distinct(fit: &Fit) -> bool {
     ok && f.windows(2).all(|w| w[1] > 1.03 * w[0])
 }
 
+/// The ambient search band's lower edge and the record's sway peak in it.
+///
+/// The lower edge leaves out what random decrement could not average (it needs 40 cycles)
+/// and sensor drift (Jackson et al. 2021 advise a 10-minute high-pass for their records).
+/// When the method is chosen automatically and no band was given, the mode must show 200
+/// cycles (`AMBIENT_MIN_CYCLES`, what makes a record ambient): below that lie the gusts,
+/// whose spectrum has its own bumps.
+///
+/// A sway mode stands out of the wind's falling spectrum by a factor: the Welch peak that
+/// rises most over its saddle (value / (value - prominence)) is the mode, not the tallest
+/// one, which on a real record is the gusts' low-frequency end. (Welch detrends each
+/// segment; a falling spectrum's edge at the lower edge is no peak, its left neighbour being
+/// higher.)
+fn sway_peak(
+    uniform: &UniformSignal,
+    guess_hz: f64,
+    low_hz: f64,
+    high_hz: f64,
+    config: &EstimateConfig,
+) -> (f64, Option<f64>) {
+    let n = uniform.values.len();
+    let dt = uniform.interval_s;
+    let duration_s = n as f64 * dt;
+    let cycles_floor = if config.method == Method::Auto && config.band_hz.is_none() {
+        AMBIENT_MIN_CYCLES
+    } else {
+        AMBIENT_RD_CYCLES
+    };
+    let low_hz = low_hz.max(
+        AMBIENT_DRIFT_HZ
+            .max(cycles_floor / duration_s)
+            .min(0.5 * high_hz),
+    );
+    // Welch segments of about a sixteenth of the record (at least 64 periods of the guess
+    // when the record allows).
+    let segment = (n / 16).max(((64.0 / guess_hz) / dt) as usize).min(n);
+    let psd = welch(uniform, segment);
+    let low = low_hz.max(2.0 * psd.resolution_hz);
+    let ratio = |p: &crate::spectrum::Peak| {
+        let saddle = p.value - p.prominence;
+        if saddle > 0.0 {
+            p.value / saddle
+        } else {
+            f64::INFINITY
+        }
+    };
+    let peak_hz = psd
+        .peaks_in(low, high_hz, 0.0)
+        .iter()
+        .max_by(|a, b| ratio(a).total_cmp(&ratio(b)))
+        .map(|p| p.refined_frequency_hz);
+    (low_hz, peak_hz)
+}
+
 fn ambient_estimate(
     uniform: &UniformSignal,
     signal: &Signal,
@@ -727,21 +987,13 @@ fn ambient_estimate(
 ) -> Result<Estimate> {
     let n = uniform.values.len();
     let dt = uniform.interval_s;
-    // Welch segments of about a sixteenth of the record (at least 64 periods of the guess
-    // when the record allows).
-    let segment = (n / 16).max(((64.0 / guess_hz) / dt) as usize).min(n);
-    let psd = welch(uniform, segment);
-    let low = low_hz.max(2.0 * psd.resolution_hz);
-    let f0 = psd
-        .peaks_in(low, high_hz, 0.0)
-        .iter()
-        .max_by(|a, b| a.prominence.total_cmp(&b.prominence))
-        .map_or(guess_hz, |p| p.refined_frequency_hz);
     let nyquist = 0.5 / dt;
+    let (low_hz, peak_hz) = sway_peak(uniform, guess_hz, low_hz, high_hz, config);
+    let f0 = peak_hz.unwrap_or(guess_hz);
     let x = band_pass(
         &uniform.values,
         dt,
-        0.5 * f0,
+        (0.5 * f0).max(low_hz),
         (2.5 * f0).min(0.95 * nyquist),
     );
     let rms = (x.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
@@ -797,6 +1049,14 @@ fn ambient_estimate(
                 cycles_needed: au_cycles_needed(m.damping_ratio, config.max_damping_cov),
             });
         }
+    }
+    if let (Some(m), Some(peak_hz)) = (est.modes.first(), peak_hz)
+        && (m.frequency_hz / peak_hz - 1.0).abs() > FAR_FROM_PEAK
+    {
+        warnings.push(Warning::FarFromPeak {
+            frequency_hz: m.frequency_hz,
+            peak_hz,
+        });
     }
     est.estimator = Estimator::RandomDecrement;
     est.method = Method::Ambient;

@@ -38,6 +38,13 @@ impl UniformSignal {
     }
 }
 
+/// A uniform grid may hold at most this many samples per measured one: more means the
+/// timestamps are mostly gaps or the interval asked for is far below the record's.
+const MAX_GRID_PER_SAMPLE: usize = 64;
+
+/// Largest uniform grid, samples (512 MB of `f64`): a day at 700 Hz.
+const MAX_GRID_SAMPLES: usize = 1 << 26;
+
 impl Signal {
     /// Validate and build.
     ///
@@ -233,7 +240,8 @@ impl Signal {
     ///
     /// # Errors
     /// [`ModalError::TooFewSamples`] below two present samples; [`ModalError::InvalidConfig`]
-    /// for an interval that is not positive and finite.
+    /// for an interval that is not positive and finite; [`ModalError::TooLarge`] when the
+    /// grid would hold more than 64 samples per present one or 2^26 in all.
     pub fn resample_uniform(&self, interval_s: Option<f64>) -> Result<UniformSignal> {
         let (t, y) = self.present();
         if t.len() < 2 {
@@ -255,7 +263,19 @@ impl Signal {
         };
         let start_s = t[0];
         let span = t[t.len() - 1] - start_s;
-        let n = (span / interval_s + 1e-9).floor() as usize + 1;
+        let grid = (span / interval_s + 1e-9).floor() + 1.0;
+        let limit = (MAX_GRID_PER_SAMPLE * t.len()).min(MAX_GRID_SAMPLES);
+        if grid.is_nan() || grid > limit as f64 {
+            return Err(ModalError::TooLarge {
+                what: format!(
+                    "a uniform grid at {interval_s} s over the record's {span} s (from {} present samples)",
+                    t.len()
+                ),
+                count: grid,
+                limit,
+            });
+        }
+        let n = grid as usize;
         let mut values = Vec::with_capacity(n);
         let mut interpolated = 0;
         let mut j = 0;

@@ -88,3 +88,82 @@ mod never_panics {
         }
     }
 }
+
+/// The paper's branch record with every value multiplied by `scale`.
+fn scaled_branch(scale: f64) -> Signal {
+    let s = modal_estimate::synthetic::DecaySpec::paper_branch()
+        .generate()
+        .unwrap();
+    let values = s.values().iter().map(|v| v.map(|v| v * scale)).collect();
+    Signal::new(s.times_s().to_vec(), values).unwrap()
+}
+
+#[test]
+fn the_unit_of_a_record_does_not_change_its_frequency_or_damping() {
+    // Issue 20: a decay scaled by 1e155 hung in the matrix pencil's SVD (its Gram matrix
+    // overflowed); scaled by 1e-160 the squares underflow. Frequency and damping must not
+    // depend on the unit, and the amplitude must scale with it.
+    for method in [modal_estimate::Method::Auto, modal_estimate::Method::Paper] {
+        let config = if method == modal_estimate::Method::Paper {
+            EstimateConfig::paper()
+        } else {
+            EstimateConfig::default()
+        };
+        let reference = estimate(&scaled_branch(1.0), &config).unwrap();
+        let m0 = reference.modes[0];
+        for exponent in [-300, -200, -160, -100, -10, 10, 100, 154, 155, 200, 300] {
+            let scale = 10f64.powi(exponent);
+            let e = estimate(&scaled_branch(scale), &config)
+                .unwrap_or_else(|err| panic!("{method:?} at 1e{exponent}: {err}"));
+            let m = e.modes[0];
+            assert!(
+                (m.frequency_hz / m0.frequency_hz - 1.0).abs() < 1e-6,
+                "{method:?} 1e{exponent}: {m:?} vs {m0:?}"
+            );
+            assert!(
+                (m.damping_ratio / m0.damping_ratio - 1.0).abs() < 1e-6,
+                "{method:?} 1e{exponent}: {m:?} vs {m0:?}"
+            );
+            let amplitude = m.amplitude / scale;
+            assert!(
+                (amplitude / m0.amplitude - 1.0).abs() < 1e-6,
+                "{method:?} 1e{exponent}: amplitude {} vs {}",
+                m.amplitude,
+                m0.amplitude
+            );
+        }
+    }
+}
+
+#[test]
+fn one_absurd_sample_is_named_not_fitted() {
+    // Issue 20: one sample of 1e308 hung the estimator, one of 1e200 panicked.
+    for bad in [1e308, 1e200, -1e300, 1e30] {
+        let s = scaled_branch(1.0);
+        let mut values = s.values().to_vec();
+        values[57] = Some(bad);
+        let signal = Signal::new(s.times_s().to_vec(), values).unwrap();
+        match estimate(&signal, &EstimateConfig::default()) {
+            Err(ModalError::Outlier { index, value, .. }) => {
+                assert_eq!(index, 57);
+                assert_eq!(value, bad);
+            }
+            other => panic!("{bad}: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn timestamps_that_would_need_a_huge_grid_are_refused() {
+    // Two samples a nanosecond apart and the rest a second apart: a uniform grid at the
+    // median interval is fine, but one sample per nanosecond over 1e6 s is not.
+    let mut times: Vec<f64> = (0..20).map(|i| f64::from(i) * 1e-9).collect();
+    times.push(1e6);
+    let values = (0..21).map(|i| Some(f64::from(i % 3))).collect();
+    let signal = Signal::new(times, values).unwrap();
+    assert!(matches!(
+        signal.resample_uniform(None),
+        Err(ModalError::TooLarge { .. })
+    ));
+    assert!(estimate(&signal, &EstimateConfig::default()).is_err());
+}

@@ -6,3 +6,4 @@ mod cramer_rao;
 mod monte_carlo;
 mod multimode;
 mod paper;
+mod real_wind;
