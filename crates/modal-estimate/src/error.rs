@@ -123,7 +123,7 @@ pub enum ModalError {
     /// A value so far from the rest of the record that it cannot be a measurement (a
     /// corrupt sample, a sentinel such as 1e308, a unit mix-up).
     #[error(
-        "value {index} (t = {time_s} s) is {value}, {spreads:.1e} times the record's typical deviation from its median: a corrupt sample? Remove it or leave it empty (missing)"
+        "value {index} (t = {time_s} s) is {value:e}, {spreads:.1e} median absolute deviations from the record's median (at most 1e9 is taken as a measurement): a corrupt sample? Remove it or leave it empty (missing)"
     )]
     Outlier {
         /// Sample index.
