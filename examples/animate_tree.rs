@@ -26,10 +26,13 @@ use std::time::Instant;
 use serde::Serialize;
 use treemocap::beam_anim::{
     AnimConfig, BeamTree, DynamicsSource, DynamicsSpec, GlbOptions, Integrator, IntegratorReport,
-    Pose, Simulation, angles_csv, read_skeleton, write_bvh, write_glb,
+    Pose, SMALL_ANGLE_LIMIT_RAD, Simulation, angles_csv, frame_count, read_skeleton, write_bvh,
+    write_glb,
 };
 use treemocap::modal_estimate::{EstimateConfig, Signal, estimate};
 use treemocap::space_colonize::synthetic::SyntheticConfig;
+
+mod common;
 
 const USAGE: &str = "usage: animate_tree [--skeleton s.json] [--dynamics d.json] [--seconds 10] [--fps 30] [--wind-speed 5] [--out tree.glb] [--bvh tree.bvh] [--angles angles.csv] [--release BRANCH_ID:DEGREES] [--integrator exact|semi|euler]
 
@@ -166,6 +169,8 @@ struct Summary {
     integrator: IntegratorReport,
     dynamics_sources: Sources,
     max_angle_deg: f64,
+    /// What the user must know about the result (an empty list when nothing).
+    warnings: Vec<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     release: Option<Release>,
     simulation_ms_per_frame: f64,
@@ -181,7 +186,11 @@ fn ensure_parent(path: &Path) -> Result<(), String> {
     }
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    common::run("animate_tree", run_main)
+}
+
+fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     let Some(args) = parse_args()? else {
         println!("{USAGE}");
         return Ok(());
@@ -219,8 +228,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some((id, _)) => Some((id, tree.index_of(id)?)),
         None => None,
     };
+    let frames = frame_count(args.seconds, args.fps, segments, branches)?;
     let mut sim = Simulation::new(tree, &assignment.dynamics, config, 1.0 / args.fps)?;
-    let frames = (args.seconds * args.fps).round().max(1.0) as usize;
     eprintln!(
         "{branches} branches ({segments} segments), {frames} frames at {} fps, {}",
         args.fps,
@@ -265,6 +274,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .flat_map(|p| p.angle_rad.iter())
         .fold(0.0f64, |m, a| m.max(a.abs()))
         .to_degrees();
+    let mut warnings = Vec::new();
+    if max_angle_deg > SMALL_ANGLE_LIMIT_RAD.to_degrees() {
+        warnings.push(format!(
+            "branches bend up to {max_angle_deg:.1}°, beyond the small-angle beam model ({:.0}°): the shapes are not physical",
+            SMALL_ANGLE_LIMIT_RAD.to_degrees()
+        ));
+    }
     let release = match (args.release, released) {
         (Some((id, degrees)), Some((_, i))) => {
             let series: Vec<Option<f64>> = poses.iter().map(|p| Some(p.angle_rad[i])).collect();
@@ -321,6 +337,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         integrator: sim.integrator_report(),
         dynamics_sources: sources,
         max_angle_deg,
+        warnings,
         release,
         simulation_ms_per_frame: sim_s / frames as f64 * 1e3,
         outputs,

@@ -24,6 +24,8 @@ use treemocap::branch_angles::{
     AngleConfig, AngleSet, Hierarchy, Series, branch_angles, synthetic,
 };
 
+mod common;
+
 const USAGE: &str =
     "usage: branch_angles <TRAJECTORIES_CSV> <HIERARCHY_JSON> [--out angles.csv] [--signed]
 
@@ -71,26 +73,8 @@ fn parse_args() -> Result<Option<Option<Args>>, String> {
     }
 }
 
-/// Errors are printed as their messages (and the causes under them), not as debug dumps.
 fn main() -> std::process::ExitCode {
-    match run_main() {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("branch_angles: {e}");
-            // Causes the message does not already say.
-            let mut said = e.to_string();
-            let mut cause = e.source();
-            while let Some(c) = cause {
-                let text = c.to_string();
-                if !said.contains(&text) {
-                    eprintln!("  caused by: {text}");
-                    said.push_str(&text);
-                }
-                cause = c.source();
-            }
-            std::process::ExitCode::FAILURE
-        }
-    }
+    common::run("branch_angles", run_main)
 }
 
 fn run_main() -> Result<(), Box<dyn std::error::Error>> {

@@ -18,6 +18,8 @@ use treemocap::kinect_io::{
     RecordingWriter, write_ply,
 };
 
+mod common;
+
 const USAGE: &str =
     "usage: capture_to_cloud <RECORDING_DIR> [--frame N] [--calibration FILE] [--out cloud.ply]
 
@@ -160,11 +162,5 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 fn main() -> ExitCode {
-    match run() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("capture_to_cloud: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    common::run("capture_to_cloud", run)
 }

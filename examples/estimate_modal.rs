@@ -24,6 +24,8 @@ use treemocap::modal_estimate::csv::{CsvLayout, read_signal_csv_with};
 use treemocap::modal_estimate::synthetic::DecaySpec;
 use treemocap::modal_estimate::{Estimate, EstimateConfig, Method, estimate};
 
+mod common;
+
 const USAGE: &str =
     "usage: estimate_modal <SIGNAL_CSV> [--method auto|paper|pencil|ambient] [--modes K]
                       [--column N] [--rate HZ] [--band LO:HI]
@@ -200,26 +202,8 @@ fn to_json(method: Method, e: &Estimate) -> Value {
     })
 }
 
-/// Errors are printed as their messages (and the causes under them), not as debug dumps.
 fn main() -> std::process::ExitCode {
-    match run_main() {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("estimate_modal: {e}");
-            // Causes the message does not already say.
-            let mut said = e.to_string();
-            let mut cause = e.source();
-            while let Some(c) = cause {
-                let text = c.to_string();
-                if !said.contains(&text) {
-                    eprintln!("  caused by: {text}");
-                    said.push_str(&text);
-                }
-                cause = c.source();
-            }
-            std::process::ExitCode::FAILURE
-        }
-    }
+    common::run("estimate_modal", run_main)
 }
 
 fn run_main() -> Result<(), Box<dyn std::error::Error>> {

@@ -27,6 +27,8 @@ use treemocap::space_colonize::{
     cylinders, cylinders_to_csv, metrics, reconstruct_with_progress, tube_mesh,
 };
 
+mod common;
+
 const USAGE: &str = "usage: reconstruct_tree <CLOUD> [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv]
 
 Reconstructs a tree (space colonization, centring, pipe-model radii anchored to fitted ones)
@@ -138,7 +140,11 @@ fn report(
     }
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    common::run("reconstruct_tree", run_main)
+}
+
+fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     let Some(args) = parse_args()? else {
         println!("{USAGE}");
         return Ok(());

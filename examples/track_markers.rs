@@ -28,6 +28,8 @@ use treemocap::meanshift_track::{
 };
 use treemocap::nalgebra::{Point2, Vector3};
 
+mod common;
+
 const USAGE: &str = "usage: track_markers <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray] [--window fixed|adaptive] [--paper]
 
 Tracks every marker of INIT_JSON ([{\"id\": \"A\", \"x\": 396, \"y\": 158, \"w\": 12, \"h\": 12}, ...],
@@ -127,26 +129,8 @@ fn parse_args() -> Result<Option<Option<Args>>, String> {
     }
 }
 
-/// Errors are printed as their messages (and the causes under them), not as debug dumps.
 fn main() -> std::process::ExitCode {
-    match run_main() {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("track_markers: {e}");
-            // Causes the message does not already say.
-            let mut said = e.to_string();
-            let mut cause = e.source();
-            while let Some(c) = cause {
-                let text = c.to_string();
-                if !said.contains(&text) {
-                    eprintln!("  caused by: {text}");
-                    said.push_str(&text);
-                }
-                cause = c.source();
-            }
-            std::process::ExitCode::FAILURE
-        }
-    }
+    common::run("track_markers", run_main)
 }
 
 fn run_main() -> Result<(), Box<dyn std::error::Error>> {

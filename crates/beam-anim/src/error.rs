@@ -97,6 +97,17 @@ pub enum AnimError {
         /// The limit.
         max: usize,
     },
+    /// A size computed from the user's numbers beyond what is accepted (checked before
+    /// anything is allocated).
+    #[error("{what}: {count} is more than the limit of {limit}")]
+    TooLarge {
+        /// What would be that large.
+        what: String,
+        /// The size asked for.
+        count: f64,
+        /// The largest accepted.
+        limit: f64,
+    },
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {

@@ -42,12 +42,15 @@ pub use oscillator::{
     Dynamics, EULER_TOLERANCE, Integrator, MAX_SUBSTEPS, PAPER_DYNAMICS, free_response, gain,
 };
 pub use procedural::procedural_tree;
-pub use sim::{AnimConfig, Forcing, IntegratorReport, Pose, Simulation};
+pub use sim::{
+    AnimConfig, Forcing, IntegratorReport, MAX_FRAMES, MAX_POSE_BYTES, MAX_PULL_RAD, Pose,
+    SMALL_ANGLE_LIMIT_RAD, Simulation, frame_count,
+};
 pub use tree::{
     BeamBranch, BeamTree, GREEN_WOOD_DENSITY_KG_M3, SEGMENTS, read_skeleton, skeleton_from_json,
     validate_nodes,
 };
-pub use wind::{Spectrum, WindConfig, WindField};
+pub use wind::{MAX_WIND_SPEED_M_S, Spectrum, WindConfig, WindField};
 
 /// The types most programs need.
 pub mod prelude {

@@ -320,6 +320,59 @@ fn rotation(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
     ))
 }
 
+/// Largest pull of [`Simulation::pull`]: a right angle. Past it the branch would fold back
+/// on itself, which no beam model describes.
+pub const MAX_PULL_RAD: f64 = std::f64::consts::FRAC_PI_2;
+
+/// Bending angle up to which the linear (small-angle) beam model holds to a few per cent
+/// (sin 30° = 0.500 against 30° = 0.524 rad: 4.5 %). Beyond it the shapes are not physical:
+/// callers report it.
+pub const SMALL_ANGLE_LIMIT_RAD: f64 = std::f64::consts::FRAC_PI_6;
+
+/// Most frames one animation may hold (a day at 120 fps).
+pub const MAX_FRAMES: usize = 10_000_000;
+
+/// Most memory the poses of one animation may take, bytes (2 GiB).
+pub const MAX_POSE_BYTES: f64 = 2.0 * 1024.0 * 1024.0 * 1024.0;
+
+/// Frames for `seconds` at `fps` (at least 1), checked before anything is simulated or
+/// allocated: finite positive inputs, at most [`MAX_FRAMES`] frames and at most
+/// [`MAX_POSE_BYTES`] of poses for a tree of `segments` segments and `branches` branches.
+///
+/// # Errors
+/// [`AnimError::InvalidParameter`] for a duration or rate that is not positive and finite;
+/// [`AnimError::TooLarge`] naming the frames or the bytes and the limit.
+pub fn frame_count(seconds: f64, fps: f64, segments: usize, branches: usize) -> Result<usize> {
+    for (name, x) in [("seconds", seconds), ("fps", fps)] {
+        if !(x.is_finite() && x > 0.0) {
+            return Err(AnimError::param(
+                name,
+                format!("{x}; must be positive and finite"),
+            ));
+        }
+    }
+    let frames = (seconds * fps).round().max(1.0);
+    if frames > MAX_FRAMES as f64 {
+        return Err(AnimError::TooLarge {
+            what: format!("{seconds} s at {fps} fps: frames"),
+            count: frames,
+            limit: MAX_FRAMES as f64,
+        });
+    }
+    let per_pose = segments as f64 * std::mem::size_of::<UnitQuaternion<f64>>() as f64
+        + branches as f64 * (std::mem::size_of::<f64>() + std::mem::size_of::<[f64; 2]>()) as f64
+        + std::mem::size_of::<Pose>() as f64;
+    let bytes = (frames + 1.0) * per_pose;
+    if bytes > MAX_POSE_BYTES {
+        return Err(AnimError::TooLarge {
+            what: format!("{frames} frames of a tree of {segments} segments: bytes of poses"),
+            count: bytes,
+            limit: MAX_POSE_BYTES,
+        });
+    }
+    Ok(frames as usize)
+}
+
 impl Simulation {
     /// Set up `tree` with one [`Dynamics`] per branch (in [`BeamTree::branches`] order),
     /// advancing `dt_s` per frame.
@@ -363,6 +416,17 @@ impl Simulation {
         };
         for (bi, (b, d)) in tree.branches().iter().zip(dynamics).enumerate() {
             d.validate(&format!("branch {}", b.id))?;
+            let nyquist_hz = 0.5 / dt_s;
+            if d.frequency_hz > nyquist_hz {
+                return Err(AnimError::param(
+                    "dynamics",
+                    format!(
+                        "branch {}: {} Hz is above the frame rate's Nyquist frequency ({nyquist_hz} Hz); \
+                         frames {dt_s} s apart cannot show it (raise the frame rate or check the dynamics)",
+                        b.id, d.frequency_hz
+                    ),
+                ));
+            }
             let (step, substeps) =
                 step_for(d, config.integrator, dt_s).map_err(|substeps| AnimError::Unstable {
                     branch: b.id,
@@ -530,10 +594,13 @@ impl Simulation {
     /// not finite.
     pub fn pull(&mut self, id: usize, angle_rad: f64) -> Result<()> {
         let i = self.tree.index_of(id)?;
-        if !angle_rad.is_finite() {
+        if !(angle_rad.is_finite() && angle_rad.abs() <= MAX_PULL_RAD) {
             return Err(AnimError::param(
                 "angle_rad",
-                format!("{angle_rad}; must be finite"),
+                format!(
+                    "{angle_rad} rad ({:.1}°); a pull must be finite and at most 90° (beyond, a branch is not a beam)",
+                    angle_rad.to_degrees()
+                ),
             ));
         }
         let b = &mut self.branches[i];

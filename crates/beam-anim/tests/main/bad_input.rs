@@ -145,3 +145,97 @@ proptest! {
         }
     }
 }
+
+/// Issue 20: values outside the range where the model means anything are errors, and sizes
+/// are checked before anything is allocated.
+#[test]
+fn values_beyond_the_model_and_sizes_beyond_memory_are_refused() {
+    // A 1e12 Hz branch cannot be shown by frames 1/30 s apart.
+    let fast = Dynamics {
+        frequency_hz: 1e12,
+        ..PAPER_DYNAMICS
+    };
+    let e = sim(fast, 1.0 / 30.0).err().expect("1e12 Hz refused");
+    assert!(
+        matches!(
+            e,
+            AnimError::InvalidParameter {
+                name: "dynamics",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("Nyquist"), "{e}");
+    assert!(
+        sim(
+            Dynamics {
+                frequency_hz: 14.9,
+                ..PAPER_DYNAMICS
+            },
+            1.0 / 30.0
+        )
+        .is_ok()
+    );
+    // Pulls beyond a right angle.
+    let mut s = sim(PAPER_DYNAMICS, 1.0 / 30.0).unwrap();
+    let id = s.tree().branches()[0].id;
+    for deg in [1000.0_f64, -91.0, f64::INFINITY] {
+        assert!(
+            matches!(
+                s.pull(id, deg.to_radians()),
+                Err(AnimError::InvalidParameter {
+                    name: "angle_rad",
+                    ..
+                })
+            ),
+            "{deg}"
+        );
+    }
+    assert!(s.pull(id, 20f64.to_radians()).is_ok());
+    // Wind beyond any measured gust.
+    let mut w = WindConfig {
+        mean_speed_m_s: 1e6,
+        ..WindConfig::default()
+    };
+    assert!(matches!(
+        w.validate(),
+        Err(AnimError::InvalidParameter {
+            name: "mean_speed_m_s",
+            ..
+        })
+    ));
+    w.mean_speed_m_s = beam_anim::MAX_WIND_SPEED_M_S;
+    assert!(w.validate().is_ok());
+    // Frames: counted, then checked against the frame and memory limits.
+    assert_eq!(beam_anim::frame_count(10.0, 30.0, 80, 20).unwrap(), 300);
+    assert_eq!(beam_anim::frame_count(1e-6, 30.0, 80, 20).unwrap(), 1);
+    for (seconds, fps) in [(1e9, 30.0), (10.0, 1e9), (1e300, 1e300)] {
+        assert!(
+            matches!(
+                beam_anim::frame_count(seconds, fps, 80, 20),
+                Err(AnimError::TooLarge { .. })
+            ),
+            "{seconds} {fps}"
+        );
+    }
+    // 3 million frames fit the frame limit but not the memory limit for 80 segments.
+    assert!(matches!(
+        beam_anim::frame_count(100_000.0, 30.0, 80, 20),
+        Err(AnimError::TooLarge { .. })
+    ));
+    for (seconds, fps) in [
+        (0.0, 30.0),
+        (-1.0, 30.0),
+        (f64::NAN, 30.0),
+        (10.0, f64::INFINITY),
+    ] {
+        assert!(
+            matches!(
+                beam_anim::frame_count(seconds, fps, 80, 20),
+                Err(AnimError::InvalidParameter { .. })
+            ),
+            "{seconds} {fps}"
+        );
+    }
+}
