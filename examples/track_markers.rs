@@ -21,6 +21,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 use treemocap::image::RgbImage;
+use treemocap::kinect_io::read_color_image;
 use treemocap::kinect_io::synth::{self, SynthConfig};
 use treemocap::meanshift_track::synthetic::score;
 use treemocap::meanshift_track::{
@@ -45,6 +46,7 @@ With no arguments: a synthetic Kinect V2 sequence, scored against its ground tru
 const TOLERANCE_PX: f64 = 3.0;
 
 #[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct InitWindow {
     id: String,
     x: i32,
@@ -165,12 +167,13 @@ fn frame_paths(dir: &Path) -> Result<Vec<PathBuf>, String> {
     Ok(paths)
 }
 
+/// A frame, strictly decoded (a truncated JPEG is an error, not grey pixels).
 fn decode(path: &Path) -> Result<RgbImage, String> {
-    let image = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let image = read_color_image(path).map_err(|e| e.to_string())?;
     if image.width() == 0 || image.height() == 0 {
         return Err(format!("{}: empty image", path.display()));
     }
-    Ok(image.to_rgb8())
+    Ok(image)
 }
 
 fn read_inits(path: &Path) -> Result<Vec<MarkerInit>, String> {

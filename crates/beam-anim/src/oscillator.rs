@@ -9,6 +9,7 @@ use crate::error::{AnimError, Result};
 
 /// Natural frequency and damping ratio of a branch's first mode.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Dynamics {
     /// Natural frequency f, Hz.
     pub frequency_hz: f64,

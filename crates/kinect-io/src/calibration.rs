@@ -34,6 +34,7 @@ pub const TUM_DEFAULT_FOCAL_PX: f64 = 525.0;
 /// `p_color = rotation * p_depth + translation_m` (the convention of OpenCV's
 /// `stereoCalibrate(depth, colour)` and so of iai_kinect2's `calib_pose.yaml`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Extrinsics {
     /// Rotation matrix, row-major.
     pub rotation: [[f64; 3]; 3],
@@ -103,6 +104,7 @@ impl Extrinsics {
 
 /// How a depth pixel finds its colour.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum RegistrationModel {
     /// Two calibrated cameras and a rigid transform between them (iai_kinect2, Azure Kinect,
@@ -136,6 +138,34 @@ pub struct Calibration {
     /// stores in millimetres). Zero by default.
     #[serde(default)]
     pub depth_offset_m: f64,
+}
+
+/// The first key path of `input` that `parsed` (the same document parsed and written back)
+/// does not have: a field the reader ignored.
+fn unknown_field(
+    input: &serde_json::Value,
+    parsed: &serde_json::Value,
+    at: &str,
+) -> Option<String> {
+    let (serde_json::Value::Object(i), serde_json::Value::Object(p)) = (input, parsed) else {
+        return None;
+    };
+    for (key, value) in i {
+        let here = if at.is_empty() {
+            key.clone()
+        } else {
+            format!("{at}.{key}")
+        };
+        match p.get(key) {
+            None => return Some(here),
+            Some(written) => {
+                if let Some(found) = unknown_field(value, written, &here) {
+                    return Some(found);
+                }
+            }
+        }
+    }
+    None
 }
 
 #[derive(Serialize, Deserialize)]
@@ -256,8 +286,19 @@ impl Calibration {
     }
 
     fn from_json_at(text: &str, path: &Path) -> Result<Self> {
-        let file: CalibrationFile = serde_json::from_str(text)
+        // `flatten` and unit variants of tagged enums cannot deny unknown fields in serde:
+        // whatever the input holds that the parsed file does not write back is unknown.
+        let value: serde_json::Value = serde_json::from_str(text)
             .map_err(|e| KinectError::calibration(path, e.to_string()))?;
+        let file: CalibrationFile = serde_json::from_value(value.clone())
+            .map_err(|e| KinectError::calibration(path, e.to_string()))?;
+        let written = serde_json::to_value(&file).unwrap_or_default();
+        if let Some(field) = unknown_field(&value, &written, "") {
+            return Err(KinectError::calibration(
+                path,
+                format!("unknown field {field:?}"),
+            ));
+        }
         if file.format != CALIBRATION_FORMAT {
             return Err(KinectError::calibration(
                 path,
@@ -423,6 +464,34 @@ mod tests {
     use super::*;
     use approx::assert_relative_eq;
     use nalgebra::Point3;
+
+    /// Issue 20: unknown fields were accepted silently in calibration files (a misspelt
+    /// `depth_ofset_m` left the offset at zero without a word). Every level refuses them now.
+    #[test]
+    fn unknown_fields_are_errors_at_every_level() {
+        for calibration in [Calibration::kinect_v2(), Calibration::tum_default(), {
+            let ir = crate::freenect2::Freenect2IrParams::kinect_v2_typical();
+            let color = crate::freenect2::Freenect2ColorParams::from_pinhole_baseline(
+                &ir, 1081.37, 959.5, 539.5, 52.0,
+            );
+            Calibration::freenect2(ir, color)
+        }] {
+            let text = calibration.to_json();
+            assert_eq!(Calibration::from_json(&text).unwrap(), calibration);
+            let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+            value["depth_ofset_m"] = serde_json::json!(0.01);
+            let e = Calibration::from_json(&value.to_string()).unwrap_err();
+            assert!(e.to_string().contains("depth_ofset_m"), "{e}");
+            let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+            value["depth_camera"]["skew"] = serde_json::json!(0.0);
+            let e = Calibration::from_json(&value.to_string()).unwrap_err();
+            assert!(e.to_string().contains("skew"), "{e}");
+            let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+            value["registration"]["scale"] = serde_json::json!(1.0);
+            let e = Calibration::from_json(&value.to_string()).unwrap_err();
+            assert!(e.to_string().contains("scale"), "{e}");
+        }
+    }
 
     #[test]
     fn json_round_trip_for_every_model() {

@@ -29,6 +29,7 @@ const UNDISTORT_TOLERANCE: f64 = 1e-12;
 /// denominator `k4, k5, k6` (`[k1, k2, p1, p2, k3, k4, k5, k6]`, the model Azure Kinect
 /// calibrations use; zero for plain Brown–Conrady). All zero means no distortion.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Distortion {
     /// Radial coefficient of r².
     pub k1: f64,
@@ -161,6 +162,7 @@ impl Distortion {
 /// Build it with [`CameraModel::new`] (which validates) or a preset; a hand-built value should
 /// be checked with [`CameraModel::validate`], which every consumer in this crate also calls.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CameraModel {
     /// Image width in pixels.
     pub width: u32,

@@ -202,6 +202,13 @@ pub fn read_color_image(path: &Path) -> Result<RgbImage> {
 /// # Errors
 /// As [`read_color_image`].
 pub fn decode_color_image(bytes: &[u8], path: &Path) -> Result<RgbImage> {
+    // The JPEG decoder fills what a truncated file lacks with grey and says nothing: the
+    // structure is checked first, so a cut file is an error and not data.
+    if bytes.starts_with(&[0xFF, 0xD8])
+        && let Some(what) = jpeg_structure_error(bytes)
+    {
+        return Err(KinectError::format(path, format!("corrupt JPEG: {what}")));
+    }
     let decoded = image::load_from_memory(bytes).map_err(|e| image_error(path, e))?;
     use image::DynamicImage as D;
     match decoded {
@@ -214,6 +221,75 @@ pub fn decode_color_image(bytes: &[u8], path: &Path) -> Result<RgbImage> {
                 other.color()
             ),
         }),
+    }
+}
+
+/// What is wrong with a JPEG's marker structure, or `None` when it is whole: SOI, then
+/// segments whose lengths stay inside the file, each scan's entropy-coded data up to the next
+/// marker, and an EOI marker. Bytes after the EOI are allowed (cameras append data there).
+fn jpeg_structure_error(bytes: &[u8]) -> Option<String> {
+    let len = bytes.len();
+    let truncated = |at: usize| {
+        Some(format!(
+            "the file ends at byte {at} of {len} before its end-of-image marker (truncated)"
+        ))
+    };
+    if !bytes.starts_with(&[0xFF, 0xD8]) {
+        return Some("no start-of-image marker".to_owned());
+    }
+    let mut i = 2;
+    let mut scans = 0usize;
+    loop {
+        if i >= len {
+            return truncated(len);
+        }
+        if bytes[i] != 0xFF {
+            return Some(format!(
+                "byte {i}: expected a marker, found {:#04x}",
+                bytes[i]
+            ));
+        }
+        while i < len && bytes[i] == 0xFF {
+            i += 1; // fill bytes
+        }
+        let Some(&marker) = bytes.get(i) else {
+            return truncated(len);
+        };
+        i += 1;
+        match marker {
+            0xD9 if scans > 0 => return None,
+            0xD9 => return Some("end-of-image marker before any image data".to_owned()),
+            0xD0..=0xD7 | 0x01 => continue,
+            0x00 => return Some(format!("byte {}: a stuffed zero outside image data", i - 1)),
+            _ => {}
+        }
+        let Some(length) = bytes.get(i..i + 2) else {
+            return truncated(len);
+        };
+        let length = usize::from(u16::from_be_bytes([length[0], length[1]]));
+        if length < 2 {
+            return Some(format!("byte {i}: segment length {length} (at least 2)"));
+        }
+        if i + length > len {
+            return truncated(len);
+        }
+        i += length;
+        if marker == 0xDA {
+            scans += 1;
+            // Entropy-coded data: up to a marker that is not a stuffed zero or a restart.
+            loop {
+                let Some(offset) = bytes[i..].iter().position(|&b| b == 0xFF) else {
+                    return truncated(len);
+                };
+                i += offset;
+                match bytes.get(i + 1) {
+                    None => return truncated(len),
+                    Some(0x00 | 0xD0..=0xD7) => i += 2,
+                    Some(0xFF) => i += 1,
+                    Some(_) => break,
+                }
+            }
+        }
     }
 }
 

@@ -52,6 +52,7 @@ const CH: usize = KINECT_V2_COLOR_HEIGHT_PX as usize;
 
 /// The IR (depth) camera's factory parameters (libfreenect2 `IrCameraParams`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[allow(missing_docs)]
 pub struct Freenect2IrParams {
     pub fx: f32,
@@ -68,6 +69,7 @@ pub struct Freenect2IrParams {
 /// The colour camera's factory parameters (libfreenect2 `ColorCameraParams`): intrinsics,
 /// disparity shift, and the cubic polynomial coefficients of the depth-to-colour map.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[allow(missing_docs)]
 pub struct Freenect2ColorParams {
     pub fx: f32,

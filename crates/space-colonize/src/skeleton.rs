@@ -55,6 +55,7 @@ pub struct Skeleton {
 }
 
 #[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct JsonNode {
     id: usize,
     parent: Option<usize>,
@@ -63,6 +64,7 @@ struct JsonNode {
 }
 
 #[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct JsonSkeleton {
     nodes: Vec<JsonNode>,
 }
