@@ -178,7 +178,7 @@ fn main() {
             return;
         }
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("pipeline: {e}");
             std::process::exit(2);
         }
     };
@@ -193,7 +193,7 @@ fn main() {
         ),
     };
     if let Err(e) = result {
-        eprintln!("error: {e}");
+        eprintln!("pipeline: {e}");
         std::process::exit(1);
     }
 }
@@ -454,6 +454,15 @@ fn read_markers(path: &Path) -> Result<MarkersFile, String> {
                 m.id
             ));
         }
+        if let Some([start, end]) = m.window_s
+            && !(start.is_finite() && end.is_finite() && start >= 0.0 && start < end)
+        {
+            return Err(format!(
+                "{}: marker {}: window_s [{start}, {end}] must be [start, end] in seconds from the first frame, 0 <= start < end",
+                path.display(),
+                m.id
+            ));
+        }
         if ![m.x, m.y, m.w, m.h].iter().all(|v| v.is_finite()) || m.w < 3.0 || m.h < 3.0 {
             return Err(format!(
                 "{}: marker {}: window x {}, y {}, w {}, h {} must be finite and at least 3 px wide",
@@ -550,6 +559,18 @@ fn run_recording(
         .iter()
         .filter_map(|m| m.window_s.map(|w| (m.id.clone(), (w[0], w[1]))))
         .collect();
+    let duration_s = recording
+        .entries()
+        .last()
+        .map_or(0.0, |e| e.timestamp_s - t0);
+    for (id, (start, _)) in &windows_s {
+        if *start >= duration_s {
+            return Err(format!(
+                "{}: marker {id}: window_s starts at {start} s, after the recording ends ({duration_s:.3} s)",
+                markers_path.display()
+            ));
+        }
+    }
     let measured = measure(
         &setup,
         recording.len(),
@@ -651,8 +672,9 @@ fn finish(
     // Reconstruction from the still frames' clouds.
     let t = Instant::now();
     eprintln!(
-        "reconstruct  {} points of {STATIC_FRAMES} still frames",
-        capture.static_points_m.len()
+        "reconstruct  {} points of {} still frames",
+        capture.static_points_m.len(),
+        STATIC_FRAMES.min(capture.times_s.len())
     );
     // The tree stands within reach of its markers: points further in front or behind (the
     // ground beyond, a wall, flying pixels mixing a branch with the background) are not it.
@@ -909,5 +931,11 @@ fn finish(
         capture.produce_s, args.threads, capture.track_s
     );
     println!("seconds   {seconds:.1}");
+    if rows.iter().all(|r| r.frequency_hz.is_none()) {
+        return Err(format!(
+            "no branch could be measured (every row of the table is `-`; the report in {} says why for each)",
+            out.display()
+        ));
+    }
     Ok(())
 }

@@ -445,7 +445,9 @@ impl Twin {
             Ok((segment, p - start + n * (r + MARKER_STANDOFF_M), n))
         };
 
-        let mut probe = Simulation::new(beam.clone(), &dynamics, AnimConfig::default(), 1.0)
+        // Only the rest pose is read from the probe: a millisecond step is short enough for
+        // any branch frequency (the simulation refuses one above its Nyquist frequency).
+        let mut probe = Simulation::new(beam.clone(), &dynamics, AnimConfig::default(), 1e-3)
             .map_err(|e| format!("twin simulation: {e}"))?;
         let rest = probe.segment_frames();
         let at = |frames: &[(UnitQuaternion<f64>, Point3<f64>)], place: &Place| {
