@@ -224,7 +224,8 @@ fn mean_direction(vectors: &[Option<Vector3<f64>>], idx: &[usize]) -> Option<Vec
 ///
 /// # Errors
 /// As [`AngleConfig::validate`]; [`AngleError::UnknownMarker`] for a hierarchy marker
-/// without a trajectory; [`AngleError::InvalidParameter`] when a rest interval holds no known
+/// without a trajectory; [`AngleError::NotInHierarchy`] for a trajectory the hierarchy does
+/// not name; [`AngleError::InvalidParameter`] when a rest interval holds no known
 /// sample of a branch or marker.
 pub fn branch_angles(
     hierarchy: &Hierarchy,
@@ -243,6 +244,15 @@ pub fn branch_angles(
                 .ok_or_else(|| AngleError::UnknownMarker { id: m.id.clone() })
         })
         .collect::<Result<_>>()?;
+    if let Some(extra) = trajectories
+        .markers()
+        .iter()
+        .find(|t| hierarchy.index_of(&t.id).is_none())
+    {
+        return Err(AngleError::NotInHierarchy {
+            id: extra.id.clone(),
+        });
+    }
     let filled = trajectories.fill_gaps(&config.gaps)?;
     let times = filled.trajectories.times_s();
     let n = times.len();

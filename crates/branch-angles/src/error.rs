@@ -85,6 +85,26 @@ pub enum AngleError {
         /// The value.
         value: f64,
     },
+    /// A coordinate farther from the origin than any position on Earth.
+    #[error(
+        "{what}: coordinate {value:e} m is beyond {limit_m:e} m (further than any point on Earth from any origin): a corrupt value?"
+    )]
+    CoordinateOutOfRange {
+        /// Where.
+        what: String,
+        /// The value, metres.
+        value: f64,
+        /// The limit, metres.
+        limit_m: f64,
+    },
+    /// A marker with a trajectory that the hierarchy does not name.
+    #[error(
+        "the trajectories hold marker {id:?}, which the hierarchy does not name (add it with its parent, or remove its rows)"
+    )]
+    NotInHierarchy {
+        /// The id.
+        id: String,
+    },
     /// Parallel sequences of different lengths.
     #[error("{what}: {found} values for {expected} timestamps")]
     LengthMismatch {

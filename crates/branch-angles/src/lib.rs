@@ -49,7 +49,9 @@ pub use angles::{AngleConfig, AngleSet, BranchAngles, RestPose, SignedAngles, br
 pub use error::{AngleError, Result};
 pub use hierarchy::{Branch, Hierarchy, MarkerNode};
 pub use series::Series;
-pub use trajectory::{Filled, Gap, GapConfig, Interpolation, MarkerTrack, Trajectories};
+pub use trajectory::{
+    Filled, Gap, GapConfig, Interpolation, MAX_COORDINATE_M, MarkerTrack, Trajectories,
+};
 
 /// The types most programs need.
 pub mod prelude {

@@ -53,6 +53,11 @@ pub(crate) fn check_times(what: &str, times_s: &[f64]) -> Result<()> {
     Ok(())
 }
 
+/// Largest coordinate accepted, metres: 10,000 km, more than the Earth's radius, so any
+/// georeferenced frame (UTM northings reach 1e7 m) fits, while a corrupt 1e300 (whose squares
+/// overflow into angles of exactly 0 or 180 degrees) does not.
+pub const MAX_COORDINATE_M: f64 = 1e7;
+
 impl Trajectories {
     /// Validate and build.
     ///
@@ -61,7 +66,8 @@ impl Trajectories {
     /// [`AngleError::DuplicateTimestamp`] for the time base; [`AngleError::InvalidId`] and
     /// [`AngleError::DuplicateId`] for the markers; [`AngleError::LengthMismatch`] for a marker
     /// with another number of positions; [`AngleError::NonFiniteCoordinate`] for a NaN or
-    /// infinite coordinate.
+    /// infinite coordinate; [`AngleError::CoordinateOutOfRange`] beyond
+    /// [`MAX_COORDINATE_M`].
     pub fn new(times_s: Vec<f64>, markers: Vec<MarkerTrack>) -> Result<Self> {
         check_times("time base", &times_s)?;
         for (k, m) in markers.iter().enumerate() {
@@ -85,6 +91,15 @@ impl Trajectories {
                     return Err(AngleError::NonFiniteCoordinate {
                         what: format!("marker {:?} at t = {} s", m.id, times_s[i]),
                         value: bad,
+                    });
+                }
+                if let Some(p) = p
+                    && let Some(&far) = p.coords.iter().find(|v| v.abs() > MAX_COORDINATE_M)
+                {
+                    return Err(AngleError::CoordinateOutOfRange {
+                        what: format!("marker {:?} at t = {} s", m.id, times_s[i]),
+                        value: far,
+                        limit_m: MAX_COORDINATE_M,
                     });
                 }
             }

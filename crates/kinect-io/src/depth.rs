@@ -229,9 +229,9 @@ pub fn decode_color_image(bytes: &[u8], path: &Path) -> Result<RgbImage> {
 /// marker, and an EOI marker. Bytes after the EOI are allowed (cameras append data there).
 fn jpeg_structure_error(bytes: &[u8]) -> Option<String> {
     let len = bytes.len();
-    let truncated = |at: usize| {
+    let truncated = |_at: usize| {
         Some(format!(
-            "the file ends at byte {at} of {len} before its end-of-image marker (truncated)"
+            "the file ends after {len} bytes, before its end-of-image marker: truncated"
         ))
     };
     if !bytes.starts_with(&[0xFF, 0xD8]) {

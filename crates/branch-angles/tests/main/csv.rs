@@ -124,3 +124,25 @@ proptest! {
         }
     }
 }
+
+/// Issue 20: one coordinate of 1e300 gave angles of exactly 0 and 180 degrees, and a row for
+/// a marker the hierarchy does not name became a "gap" message.
+#[test]
+fn absurd_coordinates_and_unnamed_markers_are_errors() {
+    let e = read_trajectories_csv("t,id,x,y,z\n0,A,0,0,0\n0.1,A,1e300,0,1\n").unwrap_err();
+    assert!(
+        matches!(e, AngleError::CoordinateOutOfRange { value, .. } if value == 1e300),
+        "{e}"
+    );
+    assert!(e.to_string().contains("\"A\""), "{e}");
+    // A georeferenced frame (UTM northing) is fine.
+    assert!(read_trajectories_csv("t,id,x,y,z\n0,A,500000,5500000,120\n").is_ok());
+    let tree = synthetic::two_level();
+    let mut text = trajectories_to_csv(&tree.trajectories);
+    text.push_str("0,Z,1,2,3\n");
+    let t = read_trajectories_csv(&text).unwrap();
+    match branch_angles(&tree.hierarchy, &t, &AngleConfig::default()) {
+        Err(AngleError::NotInHierarchy { id }) => assert_eq!(id, "Z"),
+        other => panic!("{other:?}"),
+    }
+}
