@@ -98,7 +98,8 @@ pub fn read_skeleton(path: &std::path::Path) -> Result<Skeleton> {
 ///
 /// # Errors
 /// [`AnimError::InvalidSkeleton`] (no nodes, duplicate or out-of-range ids, no root, a
-/// parent that does not exist, a non-finite position or radius), [`AnimError::Cycle`],
+/// parent that does not exist, a non-finite position, a radius that is negative or not
+/// finite), [`AnimError::Cycle`],
 /// [`AnimError::Disconnected`] (a second root's nodes), [`AnimError::ZeroLengthSegment`].
 pub fn validate_nodes(nodes: &[SkeletonNode]) -> Result<Skeleton> {
     let n = nodes.len();
@@ -114,13 +115,23 @@ pub fn validate_nodes(nodes: &[SkeletonNode]) -> Result<Skeleton> {
                 node.id
             )));
         }
-        if !(node.position.coords.iter().all(|c| c.is_finite())
-            && node.radius_m.is_finite()
-            && node.radius_m >= 0.0)
-        {
+        if !node.position.coords.iter().all(|c| c.is_finite()) {
             return Err(bad(format!(
-                "node {} has a non-finite position or radius",
-                node.id
+                "node {} has position {:?}, which is not finite",
+                node.id,
+                [node.position.x, node.position.y, node.position.z]
+            )));
+        }
+        if !node.radius_m.is_finite() {
+            return Err(bad(format!(
+                "node {} has radius {} m, which is not finite",
+                node.id, node.radius_m
+            )));
+        }
+        if node.radius_m < 0.0 {
+            return Err(bad(format!(
+                "node {} has radius {} m; a radius cannot be negative",
+                node.id, node.radius_m
             )));
         }
         at[node.id] = k;

@@ -27,6 +27,11 @@ const MIN_RELATIVE_THICKNESS: f64 = 1e-3;
 /// Smallest principal standard deviation accepted in absolute terms, metres.
 const MIN_THICKNESS_M: f64 = 1e-6;
 
+/// Largest coordinate accepted, metres: 10,000 km, more than the Earth's radius, so any
+/// georeferenced cloud fits, while a corrupt 1e300 (whose squares overflow the principal
+/// axes into a "degenerate" cloud) is named as what it is.
+pub const MAX_COORDINATE_M: f64 = 1e7;
+
 /// A cloud ready for growth.
 pub(crate) struct Prepared {
     pub pts: Vec<[f64; 3]>,
@@ -50,6 +55,19 @@ pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result
             x: p.x,
             y: p.y,
             z: p.z,
+        });
+    }
+    if let Some((index, p)) = points
+        .iter()
+        .enumerate()
+        .find(|(_, p)| p.iter().any(|c| c.abs() > MAX_COORDINATE_M))
+    {
+        return Err(ColonizeError::PointOutOfRange {
+            index,
+            x: p.x,
+            y: p.y,
+            z: p.z,
+            limit_m: MAX_COORDINATE_M,
         });
     }
     if points.len() < MIN_POINTS {

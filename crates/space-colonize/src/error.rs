@@ -26,6 +26,22 @@ pub enum ColonizeError {
         /// z, metres.
         z: f64,
     },
+    /// A coordinate farther from the origin than any point on Earth.
+    #[error(
+        "point {index} is ({x:e}, {y:e}, {z:e}) m, beyond {limit_m:e} m (further than any point on Earth from any origin): a corrupt value?"
+    )]
+    PointOutOfRange {
+        /// Index of the point in the input.
+        index: usize,
+        /// x, metres.
+        x: f64,
+        /// y, metres.
+        y: f64,
+        /// z, metres.
+        z: f64,
+        /// The limit, metres.
+        limit_m: f64,
+    },
     /// All points identical, on a line or in a plane: nothing three-dimensional to grow into.
     #[error(
         "the cloud is degenerate: its extents along its principal axes are {extents_m:?} m (a tree needs all three above {min_m} m)"

@@ -62,7 +62,7 @@ mod refine;
 mod skeleton;
 pub mod synthetic;
 
-pub use cloud::MIN_POINTS;
+pub use cloud::{MAX_COORDINATE_M, MIN_POINTS};
 pub use config::{
     ColonizeConfig, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, MAX_GAP_INFLUENCES, MAX_TWIG_KILL_M,
     MIN_KILL_SPACINGS, MIN_STEP_PER_KILL, PIPE_EXPONENT, Parameters, STEP_SPACINGS,
