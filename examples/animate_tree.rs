@@ -196,7 +196,10 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     };
     let (name, skeleton) = match &args.skeleton {
-        Some(p) => (p.display().to_string(), read_skeleton(p)?),
+        Some(p) => (
+            p.display().to_string(),
+            read_skeleton(p).map_err(|e| common::naming(p, e))?,
+        ),
         None => {
             eprintln!("no skeleton given: the synthetic tree of space_colonize::synthetic");
             (
@@ -210,12 +213,20 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
         ..AnimConfig::default()
     };
     config.wind.mean_speed_m_s = args.wind_speed_m_s;
-    let tree = BeamTree::new(&skeleton, config.wood_density_kg_m3, &config.wind.direction)?;
-    let spec = match &args.dynamics {
-        Some(p) => DynamicsSpec::read(p)?,
-        None => DynamicsSpec::default(),
+    // Every error names the input it is about: the skeleton file, the dynamics file or the
+    // option.
+    let tree = BeamTree::new(&skeleton, config.wood_density_kg_m3, &config.wind.direction)
+        .map_err(|e| format!("{name}: {e}"))?;
+    let (dynamics_name, spec) = match &args.dynamics {
+        Some(p) => (
+            p.display().to_string(),
+            DynamicsSpec::read(p).map_err(|e| common::naming(p, e))?,
+        ),
+        None => ("the default dynamics".to_string(), DynamicsSpec::default()),
     };
-    let assignment = spec.assign(&tree)?;
+    let assignment = spec
+        .assign(&tree)
+        .map_err(|e| format!("{dynamics_name}: {e}"))?;
     let count = |f: fn(&DynamicsSource) -> bool| assignment.source.iter().filter(|s| f(s)).count();
     let sources = Sources {
         explicit: count(|s| matches!(s, DynamicsSource::Explicit)),
@@ -225,11 +236,21 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let (branches, segments) = (tree.branches().len(), tree.segment_count());
     let released = match args.release {
-        Some((id, _)) => Some((id, tree.index_of(id)?)),
+        Some((id, deg)) => Some((
+            id,
+            tree.index_of(id)
+                .map_err(|e| format!("--release {id}:{deg}: {e}"))?,
+        )),
         None => None,
     };
-    let frames = frame_count(args.seconds, args.fps, segments, branches)?;
-    let mut sim = Simulation::new(tree, &assignment.dynamics, config, 1.0 / args.fps)?;
+    let frames = frame_count(args.seconds, args.fps, segments, branches)
+        .map_err(|e| format!("--seconds {} --fps {}: {e}", args.seconds, args.fps))?;
+    config
+        .wind
+        .validate()
+        .map_err(|e| format!("--wind-speed {}: {e}", args.wind_speed_m_s))?;
+    let mut sim = Simulation::new(tree, &assignment.dynamics, config, 1.0 / args.fps)
+        .map_err(|e| format!("{dynamics_name} at --fps {}: {e}", args.fps))?;
     eprintln!(
         "{branches} branches ({segments} segments), {frames} frames at {} fps, {}",
         args.fps,
@@ -240,7 +261,8 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let mut wind = match args.release {
         Some((id, deg)) => {
-            sim.pull(id, deg.to_radians())?;
+            sim.pull(id, deg.to_radians())
+                .map_err(|e| format!("--release {id}:{deg}: {e}"))?;
             None
         }
         None => Some(sim.wind_field()?),

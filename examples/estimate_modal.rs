@@ -22,7 +22,7 @@ use std::path::PathBuf;
 use serde_json::{Value, json};
 use treemocap::modal_estimate::csv::{CsvLayout, read_signal_csv_with};
 use treemocap::modal_estimate::synthetic::DecaySpec;
-use treemocap::modal_estimate::{Estimate, EstimateConfig, Method, estimate};
+use treemocap::modal_estimate::{Estimate, EstimateConfig, Method, ModalError, estimate};
 
 mod common;
 
@@ -216,8 +216,19 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
         Some(Some(args)) => {
             let signal = read_signal_csv_with(&args.signal, &args.layout)
                 .map_err(|e| format!("{}: {e}", args.signal.display()))?;
-            let e = estimate(&signal, &config(args.method, args.modes, args.band_hz))
-                .map_err(|e| format!("{}: {e}", args.signal.display()))?;
+            let e =
+                estimate(&signal, &config(args.method, args.modes, args.band_hz)).map_err(|e| {
+                    match (&e, args.band_hz) {
+                        (
+                            ModalError::BandAboveNyquist { .. }
+                            | ModalError::InvalidBand { .. }
+                            | ModalError::RecordTooShort { .. }
+                            | ModalError::NoPeak { .. },
+                            Some((lo, hi)),
+                        ) => format!("{}: --band {lo}:{hi}: {e}", args.signal.display()),
+                        _ => format!("{}: {e}", args.signal.display()),
+                    }
+                })?;
             println!(
                 "{}",
                 serde_json::to_string_pretty(&to_json(args.method, &e))?

@@ -169,7 +169,7 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
             ("synthetic".to_string(), tree.points, Some(tree.skeleton))
         }
     };
-    let (model, seconds) = run(&points)?;
+    let (model, seconds) = run(&points).map_err(|e| format!("{name}: {e}"))?;
     let error = truth.as_ref().map(|t| skeleton_error(&model.skeleton, t));
     if let Some(p) = &args.skeleton {
         model.skeleton.write_json(p)?;

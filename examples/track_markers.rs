@@ -180,6 +180,19 @@ fn read_inits(path: &Path) -> Result<Vec<MarkerInit>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let windows: Vec<InitWindow> =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    if windows.is_empty() {
+        return Err(format!("{}: no windows", path.display()));
+    }
+    if let Some(w) = windows
+        .iter()
+        .find(|w| w.id.trim().is_empty() || w.id.contains([',', '"', '\n', '\r']))
+    {
+        return Err(format!(
+            "{}: window id {:?} is empty or holds a comma, quote or line break",
+            path.display(),
+            w.id
+        ));
+    }
     Ok(windows
         .into_iter()
         .map(|w| MarkerInit {

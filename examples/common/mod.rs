@@ -25,3 +25,15 @@ pub fn run(program: &str, body: impl FnOnce() -> Result<(), Box<dyn Error>>) -> 
         }
     }
 }
+
+/// `error` as a message that names `path`: prefixed with it unless it already says it.
+#[allow(dead_code)] // not every program reads a file whose errors lack its name
+pub fn naming(path: &std::path::Path, error: impl std::fmt::Display) -> String {
+    let shown = path.display().to_string();
+    let message = error.to_string();
+    if message.contains(&shown) {
+        message
+    } else {
+        format!("{shown}: {message}")
+    }
+}

@@ -445,6 +445,20 @@ fn read_markers(path: &Path) -> Result<MarkersFile, String> {
         ));
     }
     for m in &file.markers {
+        if m.id.trim().is_empty() || m.id.contains([',', '"', '\n', '\r']) {
+            return Err(format!(
+                "{}: marker id {:?} is empty or holds a comma, quote or line break",
+                path.display(),
+                m.id
+            ));
+        }
+        if file.markers.iter().filter(|q| q.id == m.id).count() > 1 {
+            return Err(format!(
+                "{}: marker id {:?} appears twice",
+                path.display(),
+                m.id
+            ));
+        }
         if let Some(p) = &m.parent
             && !file.markers.iter().any(|q| q.id == *p)
         {
@@ -500,6 +514,38 @@ fn run_recording(
     }
     let calibration = recording.calibration().clone();
     let color = calibration.color_camera;
+    // Each window on the first colour image, and each measuring window inside the recording.
+    let t_first = recording.entries()[0].timestamp_s;
+    let duration_s = recording
+        .entries()
+        .last()
+        .map_or(0.0, |e| e.timestamp_s - t_first);
+    let frame_s = duration_s / (recording.len() - 1) as f64;
+    for m in &file.markers {
+        let (w, h) = (f64::from(color.width), f64::from(color.height));
+        if m.x < 0.0 || m.y < 0.0 || m.x + m.w > w || m.y + m.h > h {
+            return Err(format!(
+                "{}: marker {}: window x {}, y {}, w {}, h {} is not inside the {}x{} px colour image",
+                markers_path.display(),
+                m.id,
+                m.x,
+                m.y,
+                m.w,
+                m.h,
+                color.width,
+                color.height
+            ));
+        }
+        if let Some([start, end]) = m.window_s
+            && (start >= duration_s || end > duration_s + frame_s)
+        {
+            return Err(format!(
+                "{}: marker {}: window_s [{start}, {end}] s is not inside the recording (0 to {duration_s:.3} s)",
+                markers_path.display(),
+                m.id
+            ));
+        }
+    }
     let plane_scale = plane_scale(color.width);
     let plane = color
         .scaled(plane_scale)

@@ -31,7 +31,7 @@ pub enum AnimError {
         node: usize,
     },
     /// A natural frequency that is not positive and finite.
-    #[error("{what}: frequency {frequency_hz} Hz; must be positive and finite")]
+    #[error("{what}: frequency {frequency_hz:e} Hz; must be positive and at most 1000 Hz")]
     InvalidFrequency {
         /// Which branch or entry.
         what: String,

@@ -39,7 +39,8 @@ pub use export::{
     write_glb,
 };
 pub use oscillator::{
-    Dynamics, EULER_TOLERANCE, Integrator, MAX_SUBSTEPS, PAPER_DYNAMICS, free_response, gain,
+    Dynamics, EULER_TOLERANCE, Integrator, MAX_FREQUENCY_HZ, MAX_SUBSTEPS, PAPER_DYNAMICS,
+    free_response, gain,
 };
 pub use procedural::procedural_tree;
 pub use sim::{
@@ -47,8 +48,8 @@ pub use sim::{
     SMALL_ANGLE_LIMIT_RAD, Simulation, frame_count,
 };
 pub use tree::{
-    BeamBranch, BeamTree, GREEN_WOOD_DENSITY_KG_M3, SEGMENTS, read_skeleton, skeleton_from_json,
-    validate_nodes,
+    BeamBranch, BeamTree, GREEN_WOOD_DENSITY_KG_M3, MAX_POSITION_M, MAX_RADIUS_M, SEGMENTS,
+    read_skeleton, skeleton_from_json, validate_nodes,
 };
 pub use wind::{MAX_WIND_SPEED_M_S, Spectrum, WindConfig, WindField};
 

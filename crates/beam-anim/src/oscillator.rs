@@ -24,13 +24,20 @@ pub const PAPER_DYNAMICS: Dynamics = Dynamics {
     damping_ratio: 0.086,
 };
 
+/// Highest branch frequency accepted, hertz: leaves flutter at tens of hertz, and nothing of
+/// a tree sways at a kilohertz.
+pub const MAX_FREQUENCY_HZ: f64 = 1000.0;
+
 impl Dynamics {
-    /// Check f > 0 and ξ in [0, 1); `what` names the entry in the error.
+    /// Check 0 < f ≤ [`MAX_FREQUENCY_HZ`] and ξ in [0, 1); `what` names the entry in the error.
     ///
     /// # Errors
     /// [`AnimError::InvalidFrequency`], [`AnimError::InvalidDamping`].
     pub fn validate(&self, what: &str) -> Result<()> {
-        if !(self.frequency_hz.is_finite() && self.frequency_hz > 0.0) {
+        if !(self.frequency_hz.is_finite()
+            && self.frequency_hz > 0.0
+            && self.frequency_hz <= MAX_FREQUENCY_HZ)
+        {
             return Err(AnimError::InvalidFrequency {
                 what: what.to_owned(),
                 frequency_hz: self.frequency_hz,

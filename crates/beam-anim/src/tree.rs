@@ -94,6 +94,14 @@ pub fn read_skeleton(path: &std::path::Path) -> Result<Skeleton> {
     skeleton_from_json(&text, path)
 }
 
+/// Largest coordinate of a skeleton node, metres: 10,000 km (any georeferenced frame fits;
+/// a corrupt 1e300 does not).
+pub const MAX_POSITION_M: f64 = 1e7;
+
+/// Largest radius of a skeleton node, metres (the thickest trees measure about 6 m across
+/// their trunk's radius at the base: the Árbol del Tule).
+pub const MAX_RADIUS_M: f64 = 20.0;
+
 /// Validate raw skeleton nodes (ids 0..n in any order) with this crate's errors.
 ///
 /// # Errors
@@ -122,6 +130,17 @@ pub fn validate_nodes(nodes: &[SkeletonNode]) -> Result<Skeleton> {
                 [node.position.x, node.position.y, node.position.z]
             )));
         }
+        if let Some(far) = node
+            .position
+            .coords
+            .iter()
+            .find(|c| c.abs() > MAX_POSITION_M)
+        {
+            return Err(bad(format!(
+                "node {} has coordinate {far:e} m, beyond {MAX_POSITION_M:e} m (further than any point on Earth from any origin)",
+                node.id
+            )));
+        }
         if !node.radius_m.is_finite() {
             return Err(bad(format!(
                 "node {} has radius {} m, which is not finite",
@@ -131,6 +150,12 @@ pub fn validate_nodes(nodes: &[SkeletonNode]) -> Result<Skeleton> {
         if node.radius_m < 0.0 {
             return Err(bad(format!(
                 "node {} has radius {} m; a radius cannot be negative",
+                node.id, node.radius_m
+            )));
+        }
+        if node.radius_m > MAX_RADIUS_M {
+            return Err(bad(format!(
+                "node {} has radius {:e} m; no tree is thicker than {MAX_RADIUS_M} m",
                 node.id, node.radius_m
             )));
         }

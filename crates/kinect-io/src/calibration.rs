@@ -140,6 +140,9 @@ pub struct Calibration {
     pub depth_offset_m: f64,
 }
 
+/// Largest distance between the two cameras of a rig, and largest depth offset, metres.
+const MAX_RIG_M: f64 = 10.0;
+
 /// The first key path of `input` that `parsed` (the same document parsed and written back)
 /// does not have: a field the reader ignored.
 fn unknown_field(
@@ -246,18 +249,36 @@ impl Calibration {
     pub fn validate(&self) -> Result<()> {
         self.depth_camera.validate()?;
         self.color_camera.validate()?;
-        if !(self.depth_unit_m.is_finite() && self.depth_unit_m > 0.0) {
+        if !(self.depth_unit_m.is_finite() && self.depth_unit_m > 0.0 && self.depth_unit_m <= 1.0) {
             return Err(KinectError::param(
                 "depth_unit_m",
-                format!("{} m must be finite and positive", self.depth_unit_m),
+                format!(
+                    "{} m must be positive and at most 1 m (millimetres are 0.001)",
+                    self.depth_unit_m
+                ),
             ));
         }
-        if !self.depth_offset_m.is_finite() {
-            return Err(KinectError::param("depth_offset_m", "is not finite"));
+        if !(self.depth_offset_m.is_finite() && self.depth_offset_m.abs() <= MAX_RIG_M) {
+            return Err(KinectError::param(
+                "depth_offset_m",
+                format!(
+                    "{} m; an offset beyond {MAX_RIG_M} m is no depth correction",
+                    self.depth_offset_m
+                ),
+            ));
         }
         match &self.registration {
             RegistrationModel::Rigid(e) => {
                 e.to_isometry()?;
+                if !e.translation_m.iter().all(|t| t.abs() <= MAX_RIG_M) {
+                    return Err(KinectError::param(
+                        "registration translation_m",
+                        format!(
+                            "{:?} m; cameras more than {MAX_RIG_M} m apart are not one RGB-D camera",
+                            e.translation_m
+                        ),
+                    ));
+                }
             }
             RegistrationModel::AlreadyRegistered => {
                 if (self.depth_camera.width, self.depth_camera.height)

@@ -157,6 +157,18 @@ impl Distortion {
     }
 }
 
+/// Largest image side accepted, pixels: 16384, four times the widest RGB-D sensor (Azure
+/// Kinect colour: 4096 px); anything larger is a corrupt calibration, and would allocate
+/// gigabytes per frame.
+pub const MAX_IMAGE_SIDE_PX: u32 = 16_384;
+
+/// Largest focal length accepted, in image sides: 100 is a field of view of 0.6 degrees.
+pub const MAX_FOCAL_SIDES: f64 = 100.0;
+
+/// Largest distortion coefficient accepted (OpenCV's rational model stays within tens for
+/// real lenses; Azure Kinect factory values are below 30).
+pub const MAX_DISTORTION_COEFFICIENT: f64 = 1e3;
+
 /// A pinhole camera with Brown–Conrady distortion and an image size.
 ///
 /// Build it with [`CameraModel::new`] (which validates) or a preset; a hand-built value should
@@ -258,26 +270,54 @@ impl CameraModel {
                 format!("{}x{} px has no pixels", self.width, self.height),
             ));
         }
+        if self.width > MAX_IMAGE_SIDE_PX || self.height > MAX_IMAGE_SIDE_PX {
+            return Err(KinectError::param(
+                "camera size",
+                format!(
+                    "{}x{} px; at most {MAX_IMAGE_SIDE_PX} px a side (no RGB-D camera comes near)",
+                    self.width, self.height
+                ),
+            ));
+        }
+        let side = f64::from(self.width.max(self.height));
         for (name, value) in [("camera fx", self.fx), ("camera fy", self.fy)] {
-            if !(value.is_finite() && value > 0.0) {
+            if !(value.is_finite() && value > 0.0 && value <= MAX_FOCAL_SIDES * side) {
                 return Err(KinectError::param(
                     name,
-                    format!("{value} px must be finite and positive"),
+                    format!(
+                        "{value} px must be positive and at most {MAX_FOCAL_SIDES} image widths ({} px)",
+                        MAX_FOCAL_SIDES * side
+                    ),
                 ));
             }
         }
-        for (name, value) in [("camera cx", self.cx), ("camera cy", self.cy)] {
-            if !value.is_finite() {
+        for (name, value, size) in [
+            ("camera cx", self.cx, f64::from(self.width)),
+            ("camera cy", self.cy, f64::from(self.height)),
+        ] {
+            if !(value.is_finite() && value >= -size && value <= 2.0 * size) {
                 return Err(KinectError::param(
                     name,
-                    format!("{value} px is not finite"),
+                    format!(
+                        "{value} px; the principal point must lie within one image size of the image ({} to {} px)",
+                        -size,
+                        2.0 * size
+                    ),
                 ));
             }
         }
-        if self.distortion.to_opencv().iter().any(|c| !c.is_finite()) {
+        if self
+            .distortion
+            .to_opencv()
+            .iter()
+            .any(|c| !(c.is_finite() && c.abs() <= MAX_DISTORTION_COEFFICIENT))
+        {
             return Err(KinectError::param(
                 "camera distortion",
-                format!("coefficients not finite: {:?}", self.distortion),
+                format!(
+                    "coefficients must be finite and at most {MAX_DISTORTION_COEFFICIENT} in size: {:?}",
+                    self.distortion
+                ),
             ));
         }
         Ok(())

@@ -147,6 +147,9 @@ pub fn decode_depth_image(bytes: &[u8], path: &Path, unit_m: f64) -> Result<Dept
             "not a PNG or PGM file (unknown magic bytes)",
         ));
     }
+    if let Some(what) = png_end_error(bytes) {
+        return Err(KinectError::format(path, format!("corrupt PNG: {what}")));
+    }
     let decoded = image::load_from_memory_with_format(bytes, image::ImageFormat::Png)
         .map_err(|e| image_error(path, e))?;
     match decoded {
@@ -202,12 +205,18 @@ pub fn read_color_image(path: &Path) -> Result<RgbImage> {
 /// # Errors
 /// As [`read_color_image`].
 pub fn decode_color_image(bytes: &[u8], path: &Path) -> Result<RgbImage> {
-    // The JPEG decoder fills what a truncated file lacks with grey and says nothing: the
-    // structure is checked first, so a cut file is an error and not data.
+    // The JPEG decoder fills what a truncated file lacks with grey and says nothing, and the
+    // PNG decoder does not miss a cut end chunk: the structure is checked first, so a cut
+    // file is an error and not data.
     if bytes.starts_with(&[0xFF, 0xD8])
         && let Some(what) = jpeg_structure_error(bytes)
     {
         return Err(KinectError::format(path, format!("corrupt JPEG: {what}")));
+    }
+    if bytes.starts_with(PNG_SIGNATURE)
+        && let Some(what) = png_end_error(bytes)
+    {
+        return Err(KinectError::format(path, format!("corrupt PNG: {what}")));
     }
     let decoded = image::load_from_memory(bytes).map_err(|e| image_error(path, e))?;
     use image::DynamicImage as D;
@@ -222,6 +231,28 @@ pub fn decode_color_image(bytes: &[u8], path: &Path) -> Result<RgbImage> {
             ),
         }),
     }
+}
+
+/// The first bytes of every PNG file.
+const PNG_SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
+
+/// The last chunk of every PNG file: length 0, `IEND`, and its CRC.
+const PNG_END: [u8; 12] = [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82];
+
+/// What is wrong with a PNG's end, or `None` when it closes with its `IEND` chunk (bytes
+/// after it are allowed). The decoder accepts a file cut inside that chunk.
+fn png_end_error(bytes: &[u8]) -> Option<String> {
+    let whole = bytes
+        .windows(PNG_END.len())
+        .rev()
+        .take(1 << 16)
+        .any(|w| w == PNG_END);
+    (!whole).then(|| {
+        format!(
+            "the file ends after {} bytes without its end chunk (IEND): truncated",
+            bytes.len()
+        )
+    })
 }
 
 /// What is wrong with a JPEG's marker structure, or `None` when it is whole: SOI, then

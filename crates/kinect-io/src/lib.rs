@@ -73,7 +73,8 @@ pub use calibration::{
 };
 pub use camera::{
     CameraModel, Distortion, KINECT_V2_COLOR_HEIGHT_PX, KINECT_V2_COLOR_WIDTH_PX,
-    KINECT_V2_DEPTH_HEIGHT_PX, KINECT_V2_DEPTH_WIDTH_PX,
+    KINECT_V2_DEPTH_HEIGHT_PX, KINECT_V2_DEPTH_WIDTH_PX, MAX_DISTORTION_COEFFICIENT,
+    MAX_FOCAL_SIDES, MAX_IMAGE_SIDE_PX,
 };
 pub use cloud::{CloudBuilder, CloudConfig, OcclusionFilter, TexturedCloud, TexturedPoint};
 pub use depth::{

@@ -102,10 +102,10 @@ impl Recording {
             ));
         }
         let calibration_path = dir.join(CALIBRATION_FILE);
-        let (layout, entries) = if dir.join(FRAMES_FILE).is_file() {
-            (Layout::Native, read_frames_csv(dir)?)
+        let layout = if dir.join(FRAMES_FILE).is_file() {
+            Layout::Native
         } else if dir.join("rgb.txt").is_file() && dir.join("depth.txt").is_file() {
-            (Layout::Tum, read_tum(dir)?)
+            Layout::Tum
         } else {
             return Err(KinectError::UnknownLayout {
                 path: dir.to_path_buf(),
@@ -119,6 +119,10 @@ impl Recording {
                 Calibration::read_json(&calibration_path)?
             }
             (None, Layout::Tum) => Calibration::tum_default(),
+        };
+        let entries = match layout {
+            Layout::Native => read_frames_csv(dir)?,
+            Layout::Tum => read_tum(dir)?,
         };
         Ok(Self {
             dir: dir.to_path_buf(),
@@ -246,6 +250,19 @@ fn read_frames_csv(dir: &Path) -> Result<Vec<FrameEntry>> {
                 &path,
                 format!("line {lineno}: timestamp {t} s is not after the previous {prev} s"),
             ));
+        }
+        // A cut or edited line names a file that is not there: said here, with the line,
+        // rather than later as an unreadable image.
+        for (what, file) in [("colour", color), ("depth", depth)] {
+            if file.is_empty() || !dir.join(file).is_file() {
+                return Err(KinectError::format(
+                    &path,
+                    format!(
+                        "line {lineno}: the {what} image {file:?} is not a file in {}",
+                        dir.display()
+                    ),
+                ));
+            }
         }
         entries.push(FrameEntry {
             timestamp_s: t,

@@ -150,12 +150,23 @@ proptest! {
 /// are checked before anything is allocated.
 #[test]
 fn values_beyond_the_model_and_sizes_beyond_memory_are_refused() {
-    // A 1e12 Hz branch cannot be shown by frames 1/30 s apart.
-    let fast = Dynamics {
+    // Nothing of a tree sways at 1e12 Hz, and a 20 Hz branch cannot be shown by frames
+    // 1/30 s apart.
+    let absurd = Dynamics {
         frequency_hz: 1e12,
         ..PAPER_DYNAMICS
     };
-    let e = sim(fast, 1.0 / 30.0).err().expect("1e12 Hz refused");
+    assert!(matches!(
+        sim(absurd, 1.0 / 30.0),
+        Err(AnimError::InvalidFrequency { .. })
+    ));
+    let fast = Dynamics {
+        frequency_hz: 20.0,
+        ..PAPER_DYNAMICS
+    };
+    let e = sim(fast, 1.0 / 30.0)
+        .err()
+        .expect("20 Hz at 30 fps refused");
     assert!(
         matches!(
             e,
@@ -167,6 +178,7 @@ fn values_beyond_the_model_and_sizes_beyond_memory_are_refused() {
         "{e}"
     );
     assert!(e.to_string().contains("Nyquist"), "{e}");
+    assert!(sim(fast, 1.0 / 60.0).is_ok());
     assert!(
         sim(
             Dynamics {
