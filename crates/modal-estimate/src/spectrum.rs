@@ -187,8 +187,34 @@ pub struct Peak {
 pub fn spectrum(signal: &Signal, config: &SpectrumConfig) -> Result<Spectrum> {
     config.validate()?;
     signal.check_usable("a spectrum", 4)?;
-    let uniform = signal.resample_uniform(None)?;
-    Ok(spectrum_uniform(&uniform, config))
+    let mut uniform = signal.resample_uniform(None)?;
+    // Squares of values near 1e155 overflow and those near 1e-160 vanish: the transform runs
+    // on the record divided by its largest magnitude, and the values are scaled back, which
+    // must stay inside f64's range.
+    let scale = uniform.values.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(ModalError::Numerical {
+            what: "the spectrum (the record's magnitude is not a finite positive number)",
+        });
+    }
+    uniform.values.iter_mut().for_each(|v| *v /= scale);
+    let mut s = spectrum_uniform(&uniform, config);
+    let factor = match config.scaling {
+        Scaling::Amplitude => scale,
+        Scaling::PowerSpectralDensity => scale * scale,
+    };
+    // Scaled back, the largest value must stay 6 orders of magnitude above f64's smallest
+    // normal number, or the spectrum's shape is lost to underflow.
+    let top = s.values.iter().fold(0.0_f64, |m, v| m.max(*v));
+    s.values.iter_mut().for_each(|v| *v *= factor);
+    if s.values.iter().any(|v| !v.is_finite())
+        || (top > 0.0 && top * factor < 1e6 * f64::MIN_POSITIVE)
+    {
+        return Err(ModalError::Numerical {
+            what: "the spectrum (its values leave the range of f64 in this unit: rescale the record)",
+        });
+    }
+    Ok(s)
 }
 
 /// The spectrum of samples already on a uniform grid.

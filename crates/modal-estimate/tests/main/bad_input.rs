@@ -167,3 +167,43 @@ fn timestamps_that_would_need_a_huge_grid_are_refused() {
     ));
     assert!(estimate(&signal, &EstimateConfig::default()).is_err());
 }
+
+#[test]
+fn spectra_and_the_paper_method_do_not_depend_on_the_unit() {
+    use modal_estimate::{Scaling, SpectrumConfig, paper_half_power, spectrum};
+    let reference = scaled_branch(1.0);
+    let hp0 = paper_half_power(&reference, 0.2, 15.0).unwrap();
+    for scaling in [Scaling::Amplitude, Scaling::PowerSpectralDensity] {
+        let config = SpectrumConfig {
+            scaling,
+            ..SpectrumConfig::default()
+        };
+        let s0 = spectrum(&reference, &config).unwrap();
+        let peak0 = s0.peaks(0.1)[0].refined_frequency_hz;
+        for exponent in [-300, -160, -100, 0, 100, 154, 155, 200, 300] {
+            let scale = 10f64.powi(exponent);
+            match spectrum(&scaled_branch(scale), &config) {
+                Ok(s) => {
+                    assert!(s.values.iter().all(|v| v.is_finite()), "1e{exponent}");
+                    let peak = s.peaks(0.1)[0].refined_frequency_hz;
+                    assert!((peak / peak0 - 1.0).abs() < 1e-9, "1e{exponent}: {peak}");
+                }
+                // A PSD in unit^2/Hz of a record in units of 1e300 is beyond f64, and an
+                // amplitude spectrum of 1e-300 units is at the edge of underflow: said so.
+                Err(ModalError::Numerical { .. }) => {
+                    let representable = match scaling {
+                        Scaling::Amplitude => -200..=300,
+                        _ => -100..=100,
+                    };
+                    assert!(!representable.contains(&exponent), "1e{exponent}");
+                }
+                Err(e) => panic!("1e{exponent}: {e}"),
+            }
+        }
+    }
+    for exponent in [-200, -100, 100, 300] {
+        let hp = paper_half_power(&scaled_branch(10f64.powi(exponent)), 0.2, 15.0).unwrap();
+        assert_eq!(hp.bin, hp0.bin, "1e{exponent}");
+        assert_eq!(hp.damping_ratio, hp0.damping_ratio, "1e{exponent}");
+    }
+}
