@@ -100,7 +100,15 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     };
     let set = branch_angles(&hierarchy, &trajectories, &config)?;
     report(&set);
-    let text = angles_to_csv(&set.times_s, &angle_columns(&set, args.signed));
+    let columns = angle_columns(&set, args.signed);
+    if columns.iter().all(|c| c.values.iter().all(Option::is_none)) {
+        return Err(format!(
+            "{}: no angle could be computed for any branch at any time (every marker pair lost or too close: see above)",
+            args.trajectories.display()
+        )
+        .into());
+    }
+    let text = angles_to_csv(&set.times_s, &columns);
     match &args.out {
         Some(path) => write_text(path, &text)?,
         None => print!("{text}"),

@@ -233,6 +233,16 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
                 "{}",
                 serde_json::to_string_pretty(&to_json(args.method, &e))?
             );
+            if e.modes.is_empty() {
+                // The JSON above says why (its warnings); the exit status says it failed.
+                let why: Vec<String> = e.warnings.iter().map(ToString::to_string).collect();
+                return Err(format!(
+                    "{}: no mode could be measured ({})",
+                    args.signal.display(),
+                    why.join("; ")
+                )
+                .into());
+            }
             Ok(())
         }
     }

@@ -1017,7 +1017,10 @@ fn every_example_answers_every_broken_input_with_a_message_or_a_clean_result() {
     }
     let refused = outcomes.iter().filter(|o| o.code != Some(0)).count();
     let clean = n - refused;
-    eprintln!("{n} runs: {refused} refused with a message, {clean} clean results");
+    eprintln!(
+        "{n} runs ({} on unbroken inputs): {refused} refused with a message, {clean} clean results",
+        corpus.baselines.len()
+    );
     let _ = std::fs::remove_dir_all(&root);
     assert!(
         failures.is_empty(),
