@@ -660,7 +660,7 @@ fn relative_swing(
         .iter()
         .map(|r| (r - mean) * (r - mean).transpose())
         .sum::<treemocap::nalgebra::Matrix3<f64>>();
-    let eig = cov.symmetric_eigen();
+    let eig = treemocap::nalgebra::SymmetricEigen::try_new(cov, f64::EPSILON, 1000)?;
     let k = eig.eigenvalues.imax();
     let axis: Vector3<f64> = eig.eigenvectors.column(k).into();
     Some(

@@ -424,7 +424,10 @@ fn main_swing(local: &[Option<Vector3<f64>>], v: &Vector3<f64>) -> Vector3<f64> 
         let p = l - v * l.dot(v);
         cov += p * p.transpose();
     }
-    let eig = cov.symmetric_eigen();
+    // Bounded: a 3x3 matrix of finite entries converges in a few sweeps.
+    let Some(eig) = nalgebra::SymmetricEigen::try_new(cov, f64::EPSILON, 1000) else {
+        return any_perpendicular(v).into_inner();
+    };
     let k = eig.eigenvalues.imax();
     let axis = eig.eigenvectors.column(k).into_owned();
     let axis = axis - v * axis.dot(v);

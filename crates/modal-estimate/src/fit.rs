@@ -148,7 +148,9 @@ pub(crate) fn linear_amplitudes(
     let atb = a.tr_mul(&b);
     let solved = match ata.cholesky() {
         Some(c) => c.solve(&atb),
-        None => a.svd(true, true).solve(&b, 1e-12).ok()?,
+        None => nalgebra::linalg::SVD::try_new(a, true, true, f64::EPSILON, MAX_SVD_ITERATIONS)?
+            .solve(&b, 1e-12)
+            .ok()?,
     };
     if solved.iter().any(|v| !v.is_finite()) {
         return None;
@@ -192,6 +194,10 @@ pub(crate) fn residual_sum(t: &[f64], y: &[f64], t_ref: f64, params: &[f64], dri
         })
         .sum()
 }
+
+/// Most sweeps of an SVD (nalgebra's unbounded default loops forever on a matrix whose
+/// entries overflowed); a few dozen suffice for any matrix of finite entries.
+pub(crate) const MAX_SVD_ITERATIONS: usize = 1000;
 
 /// Most iterations of the Levenberg–Marquardt loop.
 const MAX_ITERATIONS: usize = 100;

@@ -52,11 +52,19 @@ pub(crate) fn pencil_poles(
     let v = DMatrix::from_fn(l + 1, m, |i, j| eig.eigenvectors[(i, idx[j])]);
     let v1 = v.rows(0, l).into_owned();
     let v2 = v.rows(1, l).into_owned();
-    let pinv = v1
-        .pseudo_inverse(1e-12)
-        .map_err(|_| ModalError::Numerical {
-            what: "the matrix pencil's pseudo-inverse",
-        })?;
+    let numerical = || ModalError::Numerical {
+        what: "the matrix pencil's pseudo-inverse",
+    };
+    let pinv = nalgebra::linalg::SVD::try_new(
+        v1,
+        true,
+        true,
+        f64::EPSILON,
+        crate::fit::MAX_SVD_ITERATIONS,
+    )
+    .ok_or_else(numerical)?
+    .pseudo_inverse(1e-12)
+    .map_err(|_| numerical())?;
     let z = pinv * v2;
     if z.iter().any(|v| !v.is_finite()) {
         return Err(ModalError::Numerical {
