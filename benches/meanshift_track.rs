@@ -62,7 +62,7 @@ fn bench(c: &mut Criterion) {
     });
 
     // Whole-frame primitives into reused buffers (no allocation per call).
-    let mut hsv = HsvImage::new(1, 1);
+    let mut hsv = HsvImage::new(1, 1).expect("1x1 fits");
     let mut prob = image::GrayImage::new(1, 1);
     group.bench_function("whole_frame_hsv_into_backproject_into_512x424", |b| {
         b.iter(|| {

@@ -67,8 +67,18 @@ impl DepthImage {
     /// An image of zeros (no measurement anywhere).
     ///
     /// # Errors
-    /// As [`DepthImage::new`].
+    /// As [`DepthImage::new`]; [`KinectError::InvalidParameter`] above
+    /// [`crate::MAX_IMAGE_SIDE_PX`] a side (checked before allocating).
     pub fn zeros(width: u32, height: u32, unit_m: f64) -> Result<Self> {
+        if width > crate::camera::MAX_IMAGE_SIDE_PX || height > crate::camera::MAX_IMAGE_SIDE_PX {
+            return Err(KinectError::param(
+                "depth image size",
+                format!(
+                    "{width}x{height} px; at most {} px a side",
+                    crate::camera::MAX_IMAGE_SIDE_PX
+                ),
+            ));
+        }
         Self::new(
             width,
             height,

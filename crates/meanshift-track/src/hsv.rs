@@ -99,6 +99,10 @@ pub fn rgb_to_gray([r, g, b]: [u8; 3]) -> u8 {
     (sum >> GRAY_SHIFT) as u8
 }
 
+/// Largest image side accepted where this crate allocates an image from a size it is given,
+/// pixels (four times the widest RGB-D colour camera, 4096 px).
+pub const MAX_IMAGE_SIDE_PX: u32 = 16_384;
+
 /// An 8-bit HSV image: channel 0 hue (0..179), 1 saturation, 2 value.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct HsvImage(ImageBuffer<Rgb<u8>, Vec<u8>>);
@@ -121,8 +125,18 @@ impl HsvImage {
     }
 
     /// An all-zero HSV image, to be filled by [`HsvImage::convert_region`].
-    pub fn new(width: u32, height: u32) -> Self {
-        HsvImage(ImageBuffer::new(width, height))
+    ///
+    /// # Errors
+    /// [`TrackError::InvalidParameter`] for a side above [`MAX_IMAGE_SIDE_PX`] (checked
+    /// before allocating).
+    pub fn new(width: u32, height: u32) -> Result<Self> {
+        if width > MAX_IMAGE_SIDE_PX || height > MAX_IMAGE_SIDE_PX {
+            return Err(TrackError::InvalidParameter {
+                name: "HSV image size".into(),
+                reason: format!("{width}x{height} px; at most {MAX_IMAGE_SIDE_PX} px a side"),
+            });
+        }
+        Ok(HsvImage(ImageBuffer::new(width, height)))
     }
 
     /// Convert only the pixels of `region` (clipped to the image) of `image` into `self`,
@@ -386,7 +400,7 @@ mod tests {
         let img = RgbImage::from_fn(37, 3, |x, y| {
             Rgb([(x * 7) as u8, (y * 90) as u8, ((x * y * 13) % 256) as u8])
         });
-        let mut into = HsvImage::new(1, 1);
+        let mut into = HsvImage::new(1, 1).unwrap();
         into.from_image_into(&img, ChannelOrder::Bgr);
         assert_eq!(into, HsvImage::from_image(&img, ChannelOrder::Bgr));
         for (x, y, p) in img.enumerate_pixels() {
@@ -399,7 +413,7 @@ mod tests {
     fn region_conversion_matches_the_whole_image() {
         let img = RgbImage::from_fn(9, 7, |x, y| Rgb([(x * 29) as u8, (y * 37) as u8, 90]));
         let full = HsvImage::from_image(&img, ChannelOrder::Rgb);
-        let mut part = HsvImage::new(9, 7);
+        let mut part = HsvImage::new(9, 7).unwrap();
         part.convert_region(&img, ChannelOrder::Rgb, PixelRect::new(2, 1, 30, 3))
             .expect("same size");
         assert_eq!(part.get(5, 2), full.get(5, 2));

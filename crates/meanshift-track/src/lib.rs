@@ -78,7 +78,8 @@ pub use backproject::{BackProjector, back_project};
 pub use error::{Result, TrackError};
 pub use histogram::{Histogram, HistogramSpec};
 pub use hsv::{
-    ChannelOrder, ChannelRange, HUE_RANGE, HsvImage, gray_image, in_range, rgb_to_gray, rgb_to_hsv,
+    ChannelOrder, ChannelRange, HUE_RANGE, HsvImage, MAX_IMAGE_SIDE_PX, gray_image, in_range,
+    rgb_to_gray, rgb_to_hsv,
 };
 pub use meanshift::{
     CamShiftResult, MeanShiftResult, Moments, RotatedBox, TermCriteria, cam_shift, mean_shift,

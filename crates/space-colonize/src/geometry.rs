@@ -111,6 +111,10 @@ pub struct TriangleMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
+/// Most sides of a mesh ring (checked before allocating: a ring of a million sides on every
+/// node of a skeleton would not fit in memory, and 1024 is smooth at any size on screen).
+pub const MAX_MESH_SIDES: usize = 1024;
+
 /// The tree as generalized cylinders: one tube per branch, a ring of `sides` vertices at
 /// each node (frames carried along by parallel transport, so tubes do not twist), closed by
 /// a cap at each end. A branch's tube starts at the centre of the fork it grows from, inside
@@ -118,12 +122,12 @@ pub struct TriangleMesh {
 /// surface (each edge shared by exactly two triangles).
 ///
 /// # Errors
-/// [`ColonizeError::InvalidParameter`] for fewer than 3 sides.
+/// [`ColonizeError::InvalidParameter`] for fewer than 3 or more than [`MAX_MESH_SIDES`] sides.
 pub fn tube_mesh(skeleton: &Skeleton, sides: usize) -> Result<TriangleMesh> {
-    if sides < 3 {
+    if !(3..=MAX_MESH_SIDES).contains(&sides) {
         return Err(ColonizeError::param(
             "sides",
-            format!("{sides}; a ring needs at least 3"),
+            format!("{sides}; a ring needs 3 to {MAX_MESH_SIDES}"),
         ));
     }
     let nodes = skeleton.nodes();

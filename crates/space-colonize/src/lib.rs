@@ -74,7 +74,8 @@ pub use reconstruct::{
 pub use skeleton::{Branch, MAX_INSIDE_RADII, Skeleton, SkeletonNode};
 
 pub use geometry::{
-    Cylinder, DEFAULT_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv, tube_mesh,
+    Cylinder, DEFAULT_MESH_SIDES, MAX_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv,
+    tube_mesh,
 };
 pub use metrics::{Metrics, NEAR_CLOUD_M, metrics};
 
