@@ -99,8 +99,37 @@ impl SequenceConfig {
         if self.width < 64 || self.height < 64 {
             return Err(TrackError::param("size", "frames must be at least 64x64"));
         }
+        if self.width > crate::hsv::MAX_IMAGE_SIDE_PX || self.height > crate::hsv::MAX_IMAGE_SIDE_PX
+        {
+            return Err(TrackError::param(
+                "size",
+                format!(
+                    "{}x{} px; at most {} px a side",
+                    self.width,
+                    self.height,
+                    crate::hsv::MAX_IMAGE_SIDE_PX
+                ),
+            ));
+        }
         if self.frames == 0 || self.markers == 0 {
             return Err(TrackError::param("frames/markers", "must be at least 1"));
+        }
+        // Every frame is kept: the sequence must fit in memory, checked before rendering.
+        let bytes = self.frames as f64 * f64::from(self.width) * f64::from(self.height) * 3.0;
+        if bytes > MAX_SEQUENCE_BYTES {
+            return Err(TrackError::param(
+                "frames",
+                format!(
+                    "{} frames of {}x{} px take {bytes:e} bytes, more than the limit of {MAX_SEQUENCE_BYTES:e}",
+                    self.frames, self.width, self.height
+                ),
+            ));
+        }
+        if self.markers > 1000 {
+            return Err(TrackError::param(
+                "markers",
+                format!("{}; at most 1000", self.markers),
+            ));
         }
         for (name, [lo, hi]) in [
             ("marker_diameter_px", self.marker_diameter_px),
@@ -197,6 +226,9 @@ impl SyntheticMarker {
         self.rest + self.direction * s
     }
 }
+
+/// Most memory a generated sequence may take, bytes (2 GiB): its frames are all kept.
+pub const MAX_SEQUENCE_BYTES: f64 = 2.0 * 1024.0 * 1024.0 * 1024.0;
 
 /// Generate a sequence.
 ///

@@ -4,7 +4,7 @@
 
 use serde::Serialize;
 
-use crate::error::Result;
+use crate::error::{ModalError, Result};
 use crate::fit::Mode;
 use crate::signal::Signal;
 
@@ -199,9 +199,11 @@ impl DecaySpec {
     /// Generate the record.
     ///
     /// # Errors
-    /// The errors of [`Signal::new`] (only for a spec with a jitter of half an interval or
-    /// more, which breaks the timestamps' order).
+    /// [`ModalError::TooLarge`] above [`MAX_SYNTHETIC_SAMPLES`], [`ModalError::InvalidConfig`]
+    /// for a rate that is not positive and finite (both before allocating); the errors of
+    /// [`Signal::new`] (for a jitter of half an interval or more, which breaks the order).
     pub fn generate(&self) -> Result<Signal> {
+        check_size(self.samples as f64, self.sample_rate_hz)?;
         let mut r = Rng::new(self.seed);
         let sigma = self.noise_std();
         let mut times = Vec::with_capacity(self.samples);
@@ -257,7 +259,8 @@ fn mode_at(f: f64, xi: f64, d: f64, tau: f64, t_ref: f64) -> Mode {
 /// variance. Integrated exactly per sample for a force held over the step.
 ///
 /// # Errors
-/// The errors of [`Signal::uniform`].
+/// [`ModalError::InvalidConfig`] for parameters out of range, [`ModalError::TooLarge`] above
+/// [`MAX_SYNTHETIC_SAMPLES`] (before allocating); the errors of [`Signal::uniform`].
 pub fn ambient(
     frequency_hz: f64,
     damping_ratio: f64,
@@ -266,6 +269,20 @@ pub fn ambient(
     snr_db: f64,
     seed: u64,
 ) -> Result<Signal> {
+    if !(frequency_hz.is_finite()
+        && frequency_hz > 0.0
+        && (0.0..1.0).contains(&damping_ratio)
+        && duration_s.is_finite()
+        && duration_s > 0.0
+        && snr_db.is_finite())
+    {
+        return Err(ModalError::InvalidConfig {
+            name: "ambient",
+            value: frequency_hz,
+            expected: "a positive frequency, a damping ratio in [0, 1), a positive duration and a finite SNR",
+        });
+    }
+    check_size((duration_s * sample_rate_hz).round(), sample_rate_hz)?;
     let mut r = Rng::new(seed);
     let dt = 1.0 / sample_rate_hz;
     let n = (duration_s * sample_rate_hz).round() as usize;
@@ -300,4 +317,26 @@ pub fn ambient(
     let noise = (var / 10f64.powf(snr_db / 10.0)).sqrt();
     let values = out.iter().map(|&x| Some(x + noise * r.normal())).collect();
     Signal::uniform(sample_rate_hz, values)
+}
+
+/// Most samples a synthetic record may hold (the limit of a uniform grid, 2^26).
+pub const MAX_SYNTHETIC_SAMPLES: usize = 1 << 26;
+
+/// A record of `samples` at `sample_rate_hz`, checked before anything is allocated.
+fn check_size(samples: f64, sample_rate_hz: f64) -> Result<()> {
+    if !(sample_rate_hz.is_finite() && sample_rate_hz > 0.0) {
+        return Err(ModalError::InvalidConfig {
+            name: "sample_rate_hz",
+            value: sample_rate_hz,
+            expected: "positive and finite",
+        });
+    }
+    if samples.is_nan() || samples > MAX_SYNTHETIC_SAMPLES as f64 {
+        return Err(ModalError::TooLarge {
+            what: "a synthetic record: samples".to_owned(),
+            count: samples,
+            limit: MAX_SYNTHETIC_SAMPLES,
+        });
+    }
+    Ok(())
 }
