@@ -16,6 +16,10 @@ use crate::skeleton::{Skeleton, SkeletonNode};
 
 /// Node spacing of the generated skeletons, metres.
 const TRUTH_STEP_M: f64 = 0.02;
+/// Most points a synthetic cloud may hold (checked before allocating; a terrestrial laser
+/// scan of a whole tree holds tens of millions).
+pub const MAX_SYNTHETIC_POINTS: usize = 100_000_000;
+
 /// Thinnest generated twig, metres (thinner ones would get almost no points).
 const MIN_TWIG_RADIUS_M: f64 = 0.004;
 /// Sampling step of skeletons in [`skeleton_error`], metres.
@@ -116,8 +120,11 @@ impl SyntheticConfig {
         };
         pos("height_m", self.height_m)?;
         pos("base_radius_m", self.base_radius_m)?;
-        if self.points == 0 {
-            return Err(ColonizeError::param("points", "must be at least 1"));
+        if self.points == 0 || self.points > MAX_SYNTHETIC_POINTS {
+            return Err(ColonizeError::param(
+                "points",
+                format!("{}; must be 1 to {MAX_SYNTHETIC_POINTS}", self.points),
+            ));
         }
         if !(self.noise_m.is_finite() && self.noise_m >= 0.0) {
             return Err(ColonizeError::param(
