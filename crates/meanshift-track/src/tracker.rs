@@ -10,16 +10,19 @@
 //!    marker-sized blob is there. A marker found in the last frame is `tracked` when the
 //!    measurement lies in the gate, looks like the marker (its [`Observation::confidence`] is
 //!    at least [`TrackerConfig::min_confidence`]), no other marker holds that place or is
-//!    nearer to it, and, after a jump of more than half a window, its surroundings still look
-//!    like the marker's ([`TrackerConfig::context_check`]).
+//!    nearer to it, after a jump of more than half a window, its surroundings still look
+//!    like the marker's ([`TrackerConfig::context_check`]), and it lies near the line the
+//!    marker has been swinging along, when it has one (a same-look marker crossing its path
+//!    is off that line where the two paths are apart).
 //! 3. **Detection** for every other marker: the motion model takes the miss as a manoeuvre
 //!    (a release), so the gate opens to [`TrackerConfig::search_radius_windows`] windows, and
 //!    wider with every further frame without a measurement, up to the whole frame. In the gate,
 //!    the marker's appearance is thresholded into connected blobs; blobs of a marker's width
 //!    and colour are candidates. All undecided markers and all candidates are then **assigned
-//!    jointly and exclusively** at least total cost (squared gate distance plus appearance and
-//!    surroundings), so a candidate goes to the marker it fits best, and to none whose gate or
-//!    appearance it does not fit. A marker so found is `recovered`.
+//!    jointly and exclusively** at least total cost (squared gate distance plus appearance,
+//!    surroundings and the offset from the marker's swing line), so a candidate goes to the
+//!    marker it fits best, and to none whose gate or appearance it does not fit. A marker so
+//!    found is `recovered`.
 //! 4. A marker without a measurement coasts on its prediction (`predicted`) for up to
 //!    [`TrackerConfig::max_coast_frames`] frames, then is `lost` (no centre) while the search
 //!    goes on.
@@ -101,6 +104,21 @@ const PLACE_SHARE: f64 = 0.5;
 const ANCHOR_MARGIN: f64 = 3.0;
 /// Reach (windows) within which a decided marker's displacement guides an ambiguous one.
 const NEIGHBOUR_RADIUS_WINDOWS: f64 = 6.0;
+/// A marker found again after this many frames without a measurement, away from its coasted
+/// prediction, starts at rest, its velocity unknown (of the order of a window per frame).
+const STOP_AFTER_MISSES: usize = 2;
+
+/// Distance, in windows, within which a same-look marker can take this one's place.
+const CROWD_WINDOWS: f64 = 3.0;
+
+/// A quick-pass measurement further than this many spreads from the marker's swing line
+/// goes to detection (a same-look marker crossing its path took the window).
+const LINE_ACCEPT_SPREADS: f64 = 3.0;
+
+/// Largest cost of a candidate off the marker's swing line (nats; 4 is an offset of about
+/// 2.8 spreads).
+const LINE_COST_CAP: f64 = 4.0;
+
 /// Largest cost of disagreeing with the neighbours' displacement.
 const NEIGHBOUR_CAP: f64 = 6.0;
 /// Reach (windows) within which a marker that is not found counts as merged with a found
@@ -1041,6 +1059,10 @@ impl Tracker {
                 && d2[i] <= GATE_CHI2
                 && !m.on_distractor(c)
                 && familiar
+                && (!crowded(&self.markers, i)
+                    || m.swing
+                        .line()
+                        .is_none_or(|l| l.offset(c).abs() <= LINE_ACCEPT_SPREADS))
                 && !(self.config.exclusive
                     && (taken(&self.markers, i, c, &claimed)
                         || nearer_to_other(&self.markers, i, c, &predictions)));
@@ -1226,7 +1248,7 @@ impl Tracker {
                 (c, context)
             })
             .collect();
-        let mut scored = m.score(&with_context, wide);
+        let mut scored = m.score(&with_context, wide, crowded(&self.markers, i));
         scored.sort_by(|a, b| a.cost.total_cmp(&b.cost));
         let others = scored
             .iter()
@@ -1356,7 +1378,7 @@ impl Tracker {
                 with_context.push((c, context));
             }
             let previous = self.previous.as_ref();
-            for mut s in m.score(&with_context, wide) {
+            for mut s in m.score(&with_context, wide, crowded(&self.markers, i)) {
                 if let Some(prev) = previous
                     && m.misses == 0
                     && m.template.is_none()
@@ -1566,8 +1588,15 @@ impl MarkerState {
     ///   frame (capped), and the same for the surroundings' correlation when they are
     ///   informative; relative to the best candidate, so that a marker whose look changes as a
     ///   whole (blur, light) is not locked out;
-    /// - a static look-alike's penalty.
-    fn score(&self, candidates: &[(Measured, Option<f64>)], wide: f64) -> Vec<Scored> {
+    /// - a static look-alike's penalty;
+    /// - the offset from the marker's swing line: with `use_line` (a same-look marker is
+    ///   near) as it is, otherwise beyond the least offset among the candidates.
+    fn score(
+        &self,
+        candidates: &[(Measured, Option<f64>)],
+        wide: f64,
+        use_line: bool,
+    ) -> Vec<Scored> {
         let best_conf = candidates
             .iter()
             .map(|c| c.0.confidence)
@@ -1579,6 +1608,17 @@ impl MarkerState {
         let conf_sigma = self.confidence_var.sqrt().max(CONFIDENCE_SIGMA_MIN);
         let context_sigma = self.context_var.sqrt().max(CONTEXT_SIGMA_MIN);
         let informative = self.context_informative();
+        // With a same-look marker near, the offset counts as it is; alone, only as far as
+        // it exceeds the nearest candidate's (it tells candidates apart, but does not hold a
+        // marker whose release swings beside the line of its pull away from its only one).
+        let line = self.swing.line();
+        let least_offset = match (line, use_line) {
+            (Some(l), false) => candidates
+                .iter()
+                .map(|c| l.offset(c.0.center).abs())
+                .fold(f64::INFINITY, f64::min),
+            _ => 0.0,
+        };
         candidates
             .iter()
             .filter_map(|&(measured, context)| {
@@ -1600,13 +1640,20 @@ impl MarkerState {
                 } else {
                     0.0
                 };
+                // A marker that swings along a line stays near it: a same-look marker
+                // crossing its path is off the line where the paths are apart.
+                let off_line = line.map_or(0.0, |l| {
+                    let o = l.offset(measured.center).abs();
+                    (0.5 * (o * o - least_offset * least_offset)).min(LINE_COST_CAP)
+                });
                 Some(Scored {
                     measured,
                     context,
                     cost: motion_cost(r2, self.gate_var, wide)
                         + appearance
                         + surroundings
-                        + penalty,
+                        + penalty
+                        + off_line,
                 })
             })
             .collect()
@@ -1695,6 +1742,13 @@ impl MarkerState {
     ) -> Observation {
         let innovation = (q.center - self.filter.position).norm_squared();
         self.filter.update(q.center, MEASUREMENT_PX);
+        let side = window_px(self);
+        if self.misses >= STOP_AFTER_MISSES && innovation > side * side {
+            // Found again after frames of coasting, a window or more from where the coasting
+            // put it: that jump is not a velocity (it made a marker found again at the end of
+            // a swing fly off the frame), and where the swing is now in its cycle is unknown.
+            self.filter.stop(side);
+        }
         if let MotionModel::ConstantVelocity {
             min_acceleration_px,
         } = config.motion
@@ -1783,6 +1837,20 @@ fn same_look(a: &MarkerState, b: &MarkerState) -> bool {
         .map(|(x, y)| (x - y) * (x - y))
         .sum();
     d2 <= SAME_LOOK_RGB * SAME_LOOK_RGB
+}
+
+/// Whether a marker of the same look is predicted within [`CROWD_WINDOWS`] windows of marker
+/// `i`: only then can the two be confused, and only then does the swing line count (alone,
+/// a marker whose release swings beside the line of its pull must not be held to it).
+fn crowded(markers: &[MarkerState], i: usize) -> bool {
+    let m = &markers[i];
+    let reach = CROWD_WINDOWS * window_px(m);
+    markers.iter().enumerate().any(|(j, o)| {
+        j != i
+            && same_look(m, o)
+            && (o.filter.position - m.filter.position).norm()
+                < reach.max(CROWD_WINDOWS * window_px(o))
+    })
 }
 
 /// Window size (the larger side) of a marker, pixels.
