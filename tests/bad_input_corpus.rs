@@ -29,7 +29,7 @@ use treemocap::kinect_io::{
     RecordingWriter, write_pcd, write_ply, write_xyz,
 };
 use treemocap::modal_estimate::csv::signal_to_csv;
-use treemocap::modal_estimate::synthetic::DecaySpec;
+use treemocap::modal_estimate::synthetic::{DecaySpec, Rng};
 use treemocap::space_colonize::synthetic::SyntheticConfig;
 
 /// Longest a run may take (debug build, the slowest being the pipeline on a tiny recording).
@@ -57,20 +57,12 @@ struct Case {
     outputs: Vec<PathBuf>,
 }
 
-/// A small deterministic generator for the mutations (SplitMix64).
-struct Mix(u64);
+/// The project's seeded generator, for the mutations.
+struct Mix(Rng);
 
 impl Mix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
     fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
+        ((self.0.uniform() * n as f64) as usize).min(n.saturating_sub(1))
     }
 }
 
@@ -459,7 +451,7 @@ fn file_cases(
     flips: usize,
     places: usize,
 ) {
-    let mut rng = Mix(corpus.count as u64 ^ 0x5EED);
+    let mut rng = Mix(Rng::new(corpus.count as u64));
     let rng = &mut rng;
     let bytes = std::fs::read(base.join(file)).unwrap();
     let text = String::from_utf8(bytes.clone()).ok();
@@ -527,136 +519,99 @@ fn file_cases(
 
 /// Cases of extreme option values on valid inputs.
 fn option_cases(corpus: &mut Corpus, b: &Bases) {
-    let mut add = |program: &'static str,
-                   base: &Path,
-                   args: &dyn Fn(&Path) -> Vec<OsString>,
-                   names: &[&str],
-                   out: &str| {
-        let dir = corpus.fresh(base);
-        let mut a = args(&dir);
-        let mut outputs = Vec::new();
-        if !out.is_empty() {
-            a.push("--out".into());
-            a.push(dir.join(out).into_os_string());
-            outputs.push(dir.join(out));
-        }
-        corpus.cases.push(Case {
-            program,
-            label: format!("{program} {}", names.join(" ")),
-            args: a,
-            names: names.iter().map(|n| n.to_string()).collect(),
-            dir,
-            baseline: None,
-            outputs,
-        });
-    };
-    let sig = |extra: &[&str]| {
-        let extra: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
-        move |d: &Path| {
-            let mut v = vec![d.join("signal.csv").into_os_string()];
-            v.extend(extra.iter().map(OsString::from));
-            v
-        }
-    };
-    for (opt, value) in [
-        ("--band", "5:1"),
-        ("--band", "0:1000000000"),
-        ("--band", "nan:1"),
-        ("--column", "99"),
-        ("--column", "0"),
-        ("--rate", "0"),
-        ("--rate", "-5"),
-        ("--modes", "0"),
-        ("--modes", "1000000"),
-        ("--method", "magic"),
-    ] {
-        add(
+    // Per program: its base inputs, the arguments before the options, the options (each
+    // with a bad value) and the output file, if it writes one.
+    type Leading = fn(&Path) -> Vec<OsString>;
+    type Row<'a> = (
+        &'static str,
+        &'a Path,
+        Leading,
+        &'a [(&'a str, &'a str)],
+        &'a str,
+    );
+    let table: [Row<'_>; 4] = [
+        (
             "estimate_modal",
             &b.signal,
-            &sig(&[opt, value]),
-            &[opt, value],
+            |d| os(&[&d.join("signal.csv")]),
+            &[
+                ("--band", "5:1"),
+                ("--band", "0:1000000000"),
+                ("--band", "nan:1"),
+                ("--column", "99"),
+                ("--column", "0"),
+                ("--rate", "0"),
+                ("--rate", "-5"),
+                ("--modes", "0"),
+                ("--modes", "1000000"),
+                ("--method", "magic"),
+            ],
             "",
-        );
-    }
-    let anim = |extra: &[&str]| {
-        let extra: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
-        move |d: &Path| {
-            let mut v = vec![
-                OsString::from("--skeleton"),
-                d.join("skeleton.json").into_os_string(),
-            ];
-            v.extend(extra.iter().map(OsString::from));
-            v
-        }
-    };
-    for (opt, value) in [
-        ("--seconds", "1e9"),
-        ("--seconds", "0"),
-        ("--seconds", "nan"),
-        ("--seconds", "100000"),
-        ("--fps", "1e9"),
-        ("--fps", "-30"),
-        ("--fps", "0.1"),
-        ("--wind-speed", "1e6"),
-        ("--wind-speed", "-1"),
-        ("--release", "0:1000"),
-        ("--release", "999999:10"),
-        ("--release", "x:10"),
-        ("--integrator", "rk4"),
-    ] {
-        add(
+        ),
+        (
             "animate_tree",
             &b.animation,
-            &anim(&["--seconds", "0.5", opt, value]),
-            &[opt, value],
+            |d| {
+                os(&[
+                    &"--skeleton",
+                    &d.join("skeleton.json"),
+                    &"--seconds",
+                    &"0.5",
+                ])
+            },
+            &[
+                ("--seconds", "1e9"),
+                ("--seconds", "0"),
+                ("--seconds", "nan"),
+                ("--seconds", "100000"),
+                ("--fps", "1e9"),
+                ("--fps", "-30"),
+                ("--fps", "0.1"),
+                ("--wind-speed", "1e6"),
+                ("--wind-speed", "-1"),
+                ("--release", "0:1000"),
+                ("--release", "999999:10"),
+                ("--release", "x:10"),
+                ("--integrator", "rk4"),
+            ],
             "t.glb",
-        );
-    }
-    let cap = |extra: &[&str]| {
-        let extra: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
-        move |d: &Path| {
-            let mut v = vec![d.join("rec").into_os_string()];
-            v.extend(extra.iter().map(OsString::from));
-            v
-        }
-    };
-    for (opt, value) in [("--frame", "99999"), ("--frame", "-1"), ("--frame", "x")] {
-        add(
+        ),
+        (
             "capture_to_cloud",
             &b.recording,
-            &cap(&[opt, value]),
-            &[opt, value],
+            |d| os(&[&d.join("rec")]),
+            &[("--frame", "99999"), ("--frame", "-1"), ("--frame", "x")],
             "c.ply",
-        );
+        ),
+        (
+            "track_markers",
+            &b.frames,
+            |d| os(&[&d.join("frames"), &d.join("init.json")]),
+            &[("--model", "infrared"), ("--window", "huge")],
+            "tracks.json",
+        ),
+    ];
+    for (program, base, leading, options, out) in table {
+        for &(opt, value) in options {
+            let dir = corpus.fresh(base);
+            let mut args = leading(&dir);
+            args.extend([OsString::from(opt), OsString::from(value)]);
+            let mut outputs = Vec::new();
+            if !out.is_empty() {
+                args.extend([OsString::from("--out"), dir.join(out).into_os_string()]);
+                outputs.push(dir.join(out));
+            }
+            corpus.cases.push(Case {
+                program,
+                label: format!("{program} {opt} {value}"),
+                args,
+                names: vec![opt.to_owned(), value.to_owned()],
+                dir,
+                baseline: None,
+                outputs,
+            });
+        }
     }
-    add(
-        "track_markers",
-        &b.frames,
-        &|d: &Path| {
-            os(&[
-                &d.join("frames"),
-                &d.join("init.json"),
-                &"--model",
-                &"infrared",
-            ])
-        },
-        &["--model", "infrared"],
-        "tracks.json",
-    );
-    add(
-        "track_markers",
-        &b.frames,
-        &|d: &Path| {
-            os(&[
-                &d.join("frames"),
-                &d.join("init.json"),
-                &"--window",
-                &"huge",
-            ])
-        },
-        &["--window", "huge"],
-        "tracks.json",
-    );
 }
 
 fn build_corpus(root: &Path) -> Corpus {

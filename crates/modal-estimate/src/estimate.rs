@@ -509,17 +509,14 @@ fn estimate_normalised(signal: &Signal, config: &EstimateConfig) -> Result<Estim
         }
         m => m,
     };
+    let ambient = |warnings: &mut Vec<Warning>| {
+        ambient_estimate(
+            &uniform, signal, guess_hz, low_hz, high_hz, config, warnings,
+        )
+    };
     let mut est = match method {
         Method::Paper => paper_estimate(signal, release, low_hz, high_hz, &mut warnings)?,
-        Method::Ambient => ambient_estimate(
-            &uniform,
-            signal,
-            guess_hz,
-            low_hz,
-            high_hz,
-            config,
-            &mut warnings,
-        )?,
+        Method::Ambient => ambient(&mut warnings)?,
         _ => {
             let mut decay_warnings = Vec::new();
             if config.segment.detect_release && release.is_none() {
@@ -560,15 +557,7 @@ fn estimate_normalised(signal: &Signal, config: &EstimateConfig) -> Result<Estim
             };
             if config.method == Method::Auto && inconsistent && long {
                 let mut ambient_warnings = Vec::new();
-                match ambient_estimate(
-                    &uniform,
-                    signal,
-                    guess_hz,
-                    low_hz,
-                    high_hz,
-                    config,
-                    &mut ambient_warnings,
-                ) {
+                match ambient(&mut ambient_warnings) {
                     Ok(e) => {
                         warnings.append(&mut ambient_warnings);
                         e
