@@ -11,7 +11,7 @@
 //!   {"<branch id>": {...}}, "measured": [{"position": [x, y, z], "frequency_hz",
 //!   "damping_ratio"}]}` (`branches` and `measured` optional); without it, the paper's 1.46 Hz
 //!   and 0.086 for every branch. A branch is named by the id of its first skeleton node.
-//! - `--out` (default `target/treemocap-demo/tree.glb`): the animated mesh; `--bvh`: the
+//! - `--out` (default `target/treemocap-demo/animate_tree/tree.glb`): the animated mesh; `--bvh`: the
 //!   segment hierarchy as BVH; `--angles`: `t,<branch id>...`, each branch's bending angle
 //!   in degrees per frame.
 //! - `--release BRANCH_ID:DEGREES`: pull that branch to the angle and let go in still air
@@ -23,6 +23,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use clap::Parser;
 use serde::Serialize;
 use treemocap::beam_anim::{
     AnimConfig, BeamTree, DynamicsSource, DynamicsSpec, GlbOptions, Integrator, IntegratorReport,
@@ -34,16 +35,99 @@ use treemocap::space_colonize::synthetic::SyntheticConfig;
 
 mod common;
 
-const USAGE: &str = "usage: animate_tree [--skeleton s.json] [--dynamics d.json] [--seconds 10] [--fps 30] [--wind-speed 5] [--out tree.glb] [--bvh tree.bvh] [--angles angles.csv] [--release BRANCH_ID:DEGREES] [--integrator exact|semi|euler]
+/// Animate a tree (space-colonize skeleton JSON, or a synthetic tree) in turbulent wind with
+/// one oscillator of the paper's eq. (7) per branch, and write the animation as glTF 2.0
+/// binary, optionally BVH and a CSV of bending angles.
+///
+/// Prints one JSON summary on stdout; progress goes to stderr.
+#[derive(Parser, Debug)]
+#[command(name = "animate_tree", version, about, allow_negative_numbers = true)]
+struct Cli {
+    /// space-colonize's skeleton JSON (reconstruct_tree --out-skeleton) [default: the
+    /// synthetic tree of space_colonize::synthetic]
+    #[arg(long, value_name = "FILE")]
+    skeleton: Option<PathBuf>,
+    /// {"default": {"frequency_hz", "damping_ratio"}, "branches": {"<id>": {...}},
+    /// "measured": [{"position", "frequency_hz", "damping_ratio"}]} [default: the paper's
+    /// 1.46 Hz and 0.086 for every branch]
+    #[arg(long, value_name = "FILE")]
+    dynamics: Option<PathBuf>,
+    /// Length of the animation, seconds
+    #[arg(long, value_name = "S", default_value_t = 10.0, value_parser = positive)]
+    seconds: f64,
+    /// Frames per second
+    #[arg(long, value_name = "HZ", default_value_t = 30.0, value_parser = positive)]
+    fps: f64,
+    /// Mean wind speed, m/s
+    #[arg(long = "wind-speed", value_name = "M_S", default_value_t = 5.0, value_parser = not_negative)]
+    wind_speed_m_s: f64,
+    /// The animated mesh, glTF 2.0 binary [default: target/treemocap-demo/animate_tree/tree.glb]
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// The segment hierarchy and its motion as BVH
+    #[arg(long, value_name = "FILE")]
+    bvh: Option<PathBuf>,
+    /// Each branch's bending angle per frame, degrees: t,<branch id>...
+    #[arg(long, value_name = "FILE")]
+    angles: Option<PathBuf>,
+    /// Pull branch ID (its first skeleton node) to DEGREES and let go in still air instead
+    /// of wind; the summary then has the frequency and damping measured back
+    #[arg(long, value_name = "BRANCH_ID:DEGREES", value_parser = parse_release)]
+    release: Option<(usize, f64)>,
+    /// exact (zero-order hold), semi (semi-implicit Euler), euler (the paper's explicit
+    /// Euler); the Euler ones are sub-stepped until stable
+    #[arg(long, value_enum, default_value_t = IntegratorArg::Exact)]
+    integrator: IntegratorArg,
+}
 
-Animates a tree (space-colonize skeleton JSON, or a synthetic tree) in turbulent wind with
-one oscillator of the paper's eq. (7) per branch, and writes the animation as glTF 2.0
-binary (default target/treemocap-demo/tree.glb), optionally BVH and a CSV of bending angles.
-  --dynamics     {\"default\": {\"frequency_hz\", \"damping_ratio\"}, \"branches\": {\"<id>\": {...}},
-                 \"measured\": [{\"position\", \"frequency_hz\", \"damping_ratio\"}]}
-  --release      ID:DEGREES pulls branch ID (its first skeleton node) and lets go in still air
-  --integrator   exact (zero-order hold, default), semi (semi-implicit Euler), euler (the
-                 paper's explicit Euler); the Euler ones are sub-stepped until stable";
+/// The integrators, as named on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum IntegratorArg {
+    /// Zero-order hold, exact for the linear oscillator
+    Exact,
+    /// Semi-implicit Euler
+    Semi,
+    /// The paper's explicit Euler
+    Euler,
+}
+
+/// A finite number from an option's value.
+fn finite(text: &str) -> Result<f64, String> {
+    text.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|x| x.is_finite())
+        .ok_or_else(|| format!("{text}: not a number"))
+}
+
+fn positive(text: &str) -> Result<f64, String> {
+    let v = finite(text)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{text}: must be positive"))
+    }
+}
+
+fn not_negative(text: &str) -> Result<f64, String> {
+    let v = finite(text)?;
+    if v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{text}: must not be negative"))
+    }
+}
+
+fn parse_release(text: &str) -> Result<(usize, f64), String> {
+    let (id, deg) = text
+        .split_once(':')
+        .ok_or_else(|| format!("{text}: expected BRANCH_ID:DEGREES"))?;
+    let id = id
+        .trim()
+        .parse::<usize>()
+        .map_err(|_| format!("{text}: {id:?} is not a branch id"))?;
+    Ok((id, finite(deg)?))
+}
 
 struct Args {
     skeleton: Option<PathBuf>,
@@ -58,83 +142,27 @@ struct Args {
     integrator: Integrator,
 }
 
-fn parse_args() -> Result<Option<Args>, String> {
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target"));
-    let mut args = Args {
-        skeleton: None,
-        dynamics: None,
-        seconds: 10.0,
-        fps: 30.0,
-        wind_speed_m_s: 5.0,
-        out: target.join("treemocap-demo").join("tree.glb"),
-        bvh: None,
-        angles: None,
-        release: None,
-        integrator: Integrator::ExactZoh,
-    };
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        let mut value = |flag: &str| {
-            it.next()
-                .ok_or_else(|| format!("{flag} needs a value\n\n{USAGE}"))
-        };
-        let number = |flag: &str, v: String| -> Result<f64, String> {
-            v.parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| format!("{flag} {v}: not a number"))
-        };
-        match a.as_str() {
-            "-h" | "--help" => return Ok(None),
-            "--skeleton" => args.skeleton = Some(PathBuf::from(value("--skeleton")?)),
-            "--dynamics" => args.dynamics = Some(PathBuf::from(value("--dynamics")?)),
-            "--out" => args.out = PathBuf::from(value("--out")?),
-            "--bvh" => args.bvh = Some(PathBuf::from(value("--bvh")?)),
-            "--angles" => args.angles = Some(PathBuf::from(value("--angles")?)),
-            "--seconds" => args.seconds = number("--seconds", value("--seconds")?)?,
-            "--fps" => args.fps = number("--fps", value("--fps")?)?,
-            "--wind-speed" => args.wind_speed_m_s = number("--wind-speed", value("--wind-speed")?)?,
-            "--release" => {
-                let v = value("--release")?;
-                let (id, deg) = v
-                    .split_once(':')
-                    .ok_or_else(|| format!("--release {v}: expected BRANCH_ID:DEGREES"))?;
-                let id = id
-                    .trim()
-                    .parse::<usize>()
-                    .map_err(|_| format!("--release {v}: {id:?} is not a branch id"))?;
-                args.release = Some((id, number("--release", deg.trim().to_string())?));
-            }
-            "--integrator" => {
-                args.integrator = match value("--integrator")?.as_str() {
-                    "exact" => Integrator::ExactZoh,
-                    "semi" => Integrator::SemiImplicitEuler,
-                    "euler" => Integrator::ExplicitEuler,
-                    other => {
-                        return Err(format!(
-                            "--integrator {other}: expected exact, semi or euler"
-                        ));
-                    }
-                }
-            }
-            other => return Err(format!("unknown argument {other}\n\n{USAGE}")),
+impl From<Cli> for Args {
+    fn from(c: Cli) -> Self {
+        Self {
+            skeleton: c.skeleton,
+            dynamics: c.dynamics,
+            seconds: c.seconds,
+            fps: c.fps,
+            wind_speed_m_s: c.wind_speed_m_s,
+            out: c
+                .out
+                .unwrap_or_else(|| common::demo_dir("animate_tree").join("tree.glb")),
+            bvh: c.bvh,
+            angles: c.angles,
+            release: c.release,
+            integrator: match c.integrator {
+                IntegratorArg::Exact => Integrator::ExactZoh,
+                IntegratorArg::Semi => Integrator::SemiImplicitEuler,
+                IntegratorArg::Euler => Integrator::ExplicitEuler,
+            },
         }
     }
-    if args.seconds <= 0.0 {
-        return Err(format!("--seconds {}: must be positive", args.seconds));
-    }
-    if args.fps <= 0.0 {
-        return Err(format!("--fps {}: must be positive", args.fps));
-    }
-    if args.wind_speed_m_s < 0.0 {
-        return Err(format!(
-            "--wind-speed {}: must not be negative",
-            args.wind_speed_m_s
-        ));
-    }
-    Ok(Some(args))
 }
 
 #[derive(Serialize)]
@@ -187,14 +215,11 @@ fn ensure_parent(path: &Path) -> Result<(), String> {
 }
 
 fn main() -> std::process::ExitCode {
-    common::run("animate_tree", run_main)
+    let args = Args::from(Cli::parse());
+    common::run("animate_tree", || run_main(&args))
 }
 
-fn run_main() -> Result<(), Box<dyn std::error::Error>> {
-    let Some(args) = parse_args()? else {
-        println!("{USAGE}");
-        return Ok(());
-    };
+fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let (name, skeleton) = match &args.skeleton {
         Some(p) => (
             p.display().to_string(),

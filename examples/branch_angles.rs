@@ -1,12 +1,12 @@
 //! Turn 3D marker trajectories into the relative rotation angle of every branch.
 //!
 //! ```text
-//! cargo run --release --example branch_angles -- <TRAJECTORIES_CSV> <HIERARCHY_JSON> [--out angles.csv] [--signed]
+//! cargo run --release --example branch_angles -- <TRAJECTORIES_CSV> <HIERARCHY_JSON|MARKERS_JSON> [--out angles.csv] [--signed]
 //! ```
 //!
 //! `TRAJECTORIES_CSV` has rows `t,id,x,y,z` (seconds, metres; empty x, y, z for a lost
 //! frame). `HIERARCHY_JSON` is `{"markers": [{"id": "A", "parent": null}, {"id": "C",
-//! "parent": "A"}, ...]}`. The output CSV (stdout, or `--out`) has the header
+//! "parent": "A"}, ...]}`, or the capture's `markers.json` (docs/capture.md). The output CSV (stdout, or `--out`) has the header
 //! `t,<child id>,...`: per child marker the angle of its branch relative to its parent branch
 //! (eq. 1 of the paper), in degrees, an empty cell where it is unknown; with `--signed` two
 //! columns per child, `<id>_u` and `<id>_w`, the signed tilts from the rest pose. Gaps are
@@ -15,85 +15,86 @@
 //! With no arguments it runs on a synthetic two-level hierarchy with known swinging angles and
 //! prints the error of each output.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
+use clap::Parser;
 use treemocap::branch_angles::csv::{
     angle_columns, angles_to_csv, read_text, read_trajectories_csv, write_text,
 };
 use treemocap::branch_angles::{
-    AngleConfig, AngleSet, Hierarchy, Series, branch_angles, synthetic,
+    AngleConfig, AngleSet, Hierarchy, MarkerNode, Series, branch_angles, synthetic,
 };
+use treemocap::mocap_pipeline::MarkersFile;
 
 mod common;
 
-const USAGE: &str =
-    "usage: branch_angles <TRAJECTORIES_CSV> <HIERARCHY_JSON> [--out angles.csv] [--signed]
-
-Computes the angle of every branch relative to its parent branch (eq. 1 of the paper, degrees)
-from marker trajectories (CSV rows t,id,x,y,z; empty x,y,z for a lost frame) and a marker
-hierarchy ({\"markers\": [{\"id\": \"A\", \"parent\": null}, ...]}). --signed writes the signed
-tilts <id>_u, <id>_w from the rest pose instead. Short gaps (up to 3 frames) are filled with a
-cubic; longer ones stay empty and are reported on stderr.
-With no arguments: a synthetic two-level tree with known angles, and the error.";
-
+/// The angle of every branch relative to its parent branch (eq. 1 of the paper, degrees),
+/// from 3D marker trajectories and the marker hierarchy.
+///
+/// Short gaps (up to 3 frames) are filled with a cubic; longer ones stay empty and are
+/// reported on stderr. The output CSV (`t,<child id>,...`) feeds `estimate_modal --column
+/// <id>`. With no arguments: a synthetic two-level tree with known angles, and the error.
+#[derive(Parser, Debug)]
+#[command(name = "branch_angles", version, about)]
 struct Args {
-    trajectories: PathBuf,
-    hierarchy: PathBuf,
+    /// Marker trajectories: CSV rows t,id,x,y,z (seconds, metres; empty x,y,z for a lost
+    /// frame)
+    #[arg(value_name = "TRAJECTORIES_CSV", requires = "hierarchy")]
+    trajectories: Option<PathBuf>,
+    /// The hierarchy ({"markers": [{"id": "A", "parent": null}, ...]}) or the capture's
+    /// markers.json (docs/capture.md)
+    #[arg(value_name = "HIERARCHY_JSON")]
+    hierarchy: Option<PathBuf>,
+    /// Write the CSV here instead of stdout
+    #[arg(long, value_name = "FILE", requires = "trajectories")]
     out: Option<PathBuf>,
+    /// Two columns per child, <id>_u and <id>_w: the signed tilts from the rest pose
+    #[arg(long, requires = "trajectories")]
     signed: bool,
 }
 
-fn parse_args() -> Result<Option<Option<Args>>, String> {
-    let mut positional = Vec::new();
-    let (mut out, mut signed) = (None, false);
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "-h" | "--help" => return Ok(None),
-            "--out" => out = Some(PathBuf::from(it.next().ok_or("--out needs a file")?)),
-            "--signed" => signed = true,
-            other if other.starts_with('-') => {
-                return Err(format!("unknown option {other:?}\n\n{USAGE}"));
-            }
-            _ => positional.push(PathBuf::from(a)),
-        }
-    }
-    match positional.as_slice() {
-        [] if out.is_none() && !signed => Ok(Some(None)),
-        [t, h] => Ok(Some(Some(Args {
-            trajectories: t.clone(),
-            hierarchy: h.clone(),
-            out,
-            signed,
-        }))),
-        other => Err(format!(
-            "expected TRAJECTORIES_CSV and HIERARCHY_JSON, got {} paths\n\n{USAGE}",
-            other.len()
-        )),
-    }
-}
-
 fn main() -> std::process::ExitCode {
-    common::run("branch_angles", run_main)
+    let args = Args::parse();
+    common::run("branch_angles", || {
+        match (&args.trajectories, &args.hierarchy) {
+            (Some(t), Some(h)) => run(&args, t, h),
+            _ => synthetic_demo(),
+        }
+    })
 }
 
-fn run_main() -> Result<(), Box<dyn std::error::Error>> {
-    match parse_args()? {
-        None => {
-            println!("{USAGE}");
-            Ok(())
-        }
-        Some(None) => synthetic_demo(),
-        Some(Some(args)) => run(&args),
+/// The hierarchy from its own JSON, or from the capture's markers file.
+fn read_hierarchy(path: &Path) -> Result<Hierarchy, Box<dyn std::error::Error>> {
+    let text = read_text(path)?;
+    match Hierarchy::from_json(&text) {
+        Ok(h) => Ok(h),
+        Err(own) => match MarkersFile::parse(&text, path) {
+            Ok(file) => Ok(Hierarchy::new(
+                file.markers
+                    .into_iter()
+                    .map(|m| MarkerNode {
+                        id: m.id,
+                        parent: m.parent,
+                    })
+                    .collect(),
+            )
+            .map_err(|e| common::naming(path, e))?),
+            // Not a markers file either: the hierarchy reader's message is the one to show
+            // unless the file looks like a markers file (it has windows).
+            Err(markers) if text.contains("\"x\"") => Err(markers.into()),
+            Err(_) => Err(common::naming(path, own).into()),
+        },
     }
 }
 
-fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
-    let at = |p: &PathBuf, e: &dyn std::fmt::Display| format!("{}: {e}", p.display());
-    let trajectories = read_trajectories_csv(&read_text(&args.trajectories)?)
-        .map_err(|e| at(&args.trajectories, &e))?;
-    let hierarchy =
-        Hierarchy::from_json(&read_text(&args.hierarchy)?).map_err(|e| at(&args.hierarchy, &e))?;
+fn run(
+    args: &Args,
+    trajectories_path: &Path,
+    hierarchy_path: &Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let trajectories = read_trajectories_csv(&read_text(trajectories_path)?)
+        .map_err(|e| common::naming(trajectories_path, e))?;
+    let hierarchy = read_hierarchy(hierarchy_path)?;
     let config = AngleConfig {
         signed: args.signed,
         ..AngleConfig::default()
@@ -104,7 +105,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     if columns.iter().all(|c| c.values.iter().all(Option::is_none)) {
         return Err(format!(
             "{}: no angle could be computed for any branch at any time (every marker pair lost or too close: see above)",
-            args.trajectories.display()
+            trajectories_path.display()
         )
         .into());
     }

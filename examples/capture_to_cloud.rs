@@ -7,11 +7,12 @@
 //! Prints one JSON object to stdout: `{"points": <valid points>, "width": W, "height": H,
 //! "bbox_min": [x,y,z], "bbox_max": [x,y,z]}` in metres, in the depth camera frame. Errors go
 //! to stderr with a non-zero exit. With no arguments it writes a small synthetic native
-//! recording under `target/treemocap-demo/recording` and converts its first frame.
+//! recording under `target/treemocap-demo/capture_to_cloud/` and converts its first frame.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use clap::Parser;
 use treemocap::kinect_io::synth::{self, SynthConfig};
 use treemocap::kinect_io::{
     Calibration, CloudBuilder, CloudConfig, ColorFormat, PlyFormat, PointCloud, Recording,
@@ -19,18 +20,6 @@ use treemocap::kinect_io::{
 };
 
 mod common;
-
-const USAGE: &str =
-    "usage: capture_to_cloud <RECORDING_DIR> [--frame N] [--calibration FILE] [--out cloud.ply]
-
-RECORDING_DIR   a native recording (frames.csv + calibration.json) or a TUM RGB-D folder
-                (rgb.txt + depth.txt; TUM's default intrinsics when it has no calibration)
---frame N       frame index, default 0
---calibration   our calibration JSON, or an iai_kinect2 folder / calib_*.yaml file
---out FILE      PLY to write, default cloud.ply
-
-Prints {\"points\", \"width\", \"height\", \"bbox_min\", \"bbox_max\"} (metres, camera frame).
-With no arguments, runs on a synthetic recording it writes under target/treemocap-demo.";
 
 /// Colour written for points the colour camera does not see (PLY has no 'no colour').
 const UNSEEN_RGB: [u8; 3] = [128, 128, 128];
@@ -45,55 +34,32 @@ struct Summary {
     bbox_max: [f64; 3],
 }
 
+/// One frame of a recording (native or TUM layout) as a textured PLY point cloud.
+///
+/// Prints {"points", "width", "height", "bbox_min", "bbox_max"} (metres, depth camera
+/// frame). With no arguments, runs on a synthetic recording it writes under
+/// target/treemocap-demo/capture_to_cloud.
+#[derive(Parser, Debug)]
+#[command(name = "capture_to_cloud", version, about)]
 struct Args {
-    dir: PathBuf,
+    /// A native recording (frames.csv + calibration.json) or a TUM RGB-D folder (rgb.txt +
+    /// depth.txt; TUM's default intrinsics when it has no calibration)
+    #[arg(value_name = "RECORDING_DIR")]
+    dir: Option<PathBuf>,
+    /// Frame index
+    #[arg(long, value_name = "N", default_value_t = 0, requires = "dir")]
     frame: usize,
+    /// Our calibration JSON, or an iai_kinect2 folder / calib_*.yaml file
+    #[arg(long, value_name = "FILE", requires = "dir")]
     calibration: Option<PathBuf>,
-    out: PathBuf,
-}
-
-fn parse_args(raw: Vec<String>) -> Result<Option<Args>, String> {
-    let mut dir = None;
-    let mut frame = 0;
-    let mut calibration = None;
-    let mut out = PathBuf::from("cloud.ply");
-    let mut it = raw.into_iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "-h" | "--help" => return Ok(None),
-            "--frame" => {
-                let v = it.next().ok_or("--frame needs a value")?;
-                frame = v
-                    .parse()
-                    .map_err(|_| format!("--frame {v:?} is not a frame index"))?;
-            }
-            "--calibration" => {
-                calibration = Some(it.next().ok_or("--calibration needs a file")?.into())
-            }
-            "--out" => out = it.next().ok_or("--out needs a file")?.into(),
-            s if s.starts_with("--") => return Err(format!("unknown option {s:?}\n\n{USAGE}")),
-            s => {
-                if dir.replace(PathBuf::from(s)).is_some() {
-                    return Err(format!("more than one RECORDING_DIR\n\n{USAGE}"));
-                }
-            }
-        }
-    }
-    let dir = dir.ok_or_else(|| format!("missing RECORDING_DIR\n\n{USAGE}"))?;
-    Ok(Some(Args {
-        dir,
-        frame,
-        calibration,
-        out,
-    }))
+    /// PLY to write [default: cloud.ply, or the demo folder's]
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
 }
 
 /// Write a two-frame synthetic native recording and return its directory.
 fn demo_recording() -> Result<PathBuf, Box<dyn std::error::Error>> {
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target"));
-    let dir = target.join("treemocap-demo").join("recording");
+    let dir = common::demo_dir("capture_to_cloud").join("recording");
     if dir.exists() {
         std::fs::remove_dir_all(&dir)?;
     }
@@ -116,36 +82,27 @@ fn demo_recording() -> Result<PathBuf, Box<dyn std::error::Error>> {
     Ok(dir)
 }
 
-fn run() -> Result<(), Box<dyn std::error::Error>> {
-    let raw: Vec<String> = std::env::args().skip(1).collect();
-    let args = if raw.is_empty() {
-        let dir = demo_recording()?;
-        let out = dir.join("cloud.ply");
-        Args {
-            dir,
-            frame: 0,
-            calibration: None,
-            out,
-        }
-    } else {
-        match parse_args(raw)? {
-            Some(a) => a,
-            None => {
-                println!("{USAGE}");
-                return Ok(());
-            }
+fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
+    let (dir, out) = match args.dir {
+        Some(dir) => (dir, args.out.unwrap_or_else(|| PathBuf::from("cloud.ply"))),
+        None => {
+            let dir = demo_recording()?;
+            let out = args
+                .out
+                .unwrap_or_else(|| common::demo_dir("capture_to_cloud").join("cloud.ply"));
+            (dir, out)
         }
     };
     let recording = match &args.calibration {
-        Some(path) => Recording::open_with_calibration(&args.dir, Calibration::read(path)?)?,
-        None => Recording::open(&args.dir)?,
+        Some(path) => Recording::open_with_calibration(&dir, Calibration::read(path)?)?,
+        None => Recording::open(&dir)?,
     };
     let frame = recording.frame(args.frame)?;
     let mut builder = CloudBuilder::new(recording.calibration(), CloudConfig::default())?;
     let cloud = builder.build(&frame.depth, &frame.color)?;
     write_ply(
         &PointCloud::from_textured(&cloud, UNSEEN_RGB),
-        &args.out,
+        &out,
         PlyFormat::BinaryLittleEndian,
     )?;
     let (lo, hi) = cloud.bounding_box().ok_or("the cloud has no valid point")?;
@@ -157,10 +114,11 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         bbox_max: [hi.x, hi.y, hi.z],
     };
     println!("{}", serde_json::to_string(&summary)?);
-    eprintln!("wrote {}", args.out.display());
+    eprintln!("wrote {}", out.display());
     Ok(())
 }
 
 fn main() -> ExitCode {
-    common::run("capture_to_cloud", run)
+    let args = Args::parse();
+    common::run("capture_to_cloud", || run(args))
 }

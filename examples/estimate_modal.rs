@@ -2,12 +2,13 @@
 //!
 //! ```text
 //! cargo run --release --example estimate_modal -- <SIGNAL_CSV> [--method auto|paper|pencil|ambient]
-//!     [--modes K] [--column N] [--rate HZ] [--band LO:HI]
+//!     [--modes K] [--column N|NAME] [--rate HZ] [--band LO:HI]
 //! ```
 //!
 //! `SIGNAL_CSV`: `t,value` rows (seconds, any unit) after an optional header line; an empty
 //! value is a missing sample. `--column N` takes the values from column N (0-based, default
-//! 1); `--rate HZ` says the file has no time column and its rows are samples at HZ (the
+//! 1), `--column NAME` from the column of that header name (a branch of `branch_angles`'
+//! output); `--rate HZ` says the file has no time column and its rows are samples at HZ (the
 //! value column then defaults to 0). `--band LO:HI` limits the frequencies searched, hertz. Prints one JSON object:
 //! `{"method": "...", "modes": [{"frequency_hz", "damping_ratio", "frequency_std_hz",
 //! "damping_std", "amplitude"}, ...], "warnings": [...]}`, modes by amplitude, largest first
@@ -19,27 +20,69 @@
 
 use std::path::PathBuf;
 
+use clap::Parser;
 use serde_json::{Value, json};
-use treemocap::modal_estimate::csv::{CsvLayout, read_signal_csv_with};
+use treemocap::modal_estimate::csv::{CsvLayout, header_column, read_signal_csv_with};
 use treemocap::modal_estimate::synthetic::DecaySpec;
 use treemocap::modal_estimate::{Estimate, EstimateConfig, Method, ModalError, estimate};
 
 mod common;
 
-const USAGE: &str =
-    "usage: estimate_modal <SIGNAL_CSV> [--method auto|paper|pencil|ambient] [--modes K]
-                      [--column N] [--rate HZ] [--band LO:HI]
+/// Natural frequency and damping ratio of each mode of a record, as one JSON object.
+///
+/// The record is a CSV of `t,value` rows (seconds, any unit) after an optional header line;
+/// an empty value is a missing sample. auto (default) finds a pull-and-release's decay, or
+/// treats a long wind record as ambient; pencil fits the free decay (matrix pencil +
+/// Levenberg-Marquardt); ambient is random decrement on a wind record; paper is the paper's
+/// FFT peak and half-power band. With no arguments: a synthetic decay with known f and xi,
+/// and both methods' errors.
+#[derive(Parser, Debug)]
+#[command(name = "estimate_modal", version, about, allow_negative_numbers = true)]
+struct Cli {
+    /// The record (CSV)
+    #[arg(value_name = "SIGNAL_CSV")]
+    signal: Option<PathBuf>,
+    /// The estimator [default: auto]
+    #[arg(long, value_enum, requires = "signal")]
+    method: Option<MethodArg>,
+    /// Fix the number of modes (1 to 8)
+    #[arg(long, value_name = "K", requires = "signal")]
+    modes: Option<usize>,
+    /// The values' column: a 0-based number, or a header name such as a branch of
+    /// branch_angles' output [default: 1, or 0 with --rate]
+    #[arg(long, value_name = "N|NAME", requires = "signal")]
+    column: Option<String>,
+    /// The file has no time column: its rows are samples HZ apart
+    #[arg(long, value_name = "HZ", value_parser = positive, requires = "signal")]
+    rate: Option<f64>,
+    /// Search LO..HI hertz only [default: 1.5 cycles per record to Nyquist]
+    #[arg(long, value_name = "LO:HI", value_parser = parse_band, requires = "signal")]
+    band: Option<(f64, f64)>,
+}
 
-Estimates the natural frequency and damping ratio of each mode of a record (CSV of t,value rows
-in seconds and any unit after an optional header line; an empty value is a missing sample) and
-prints one JSON object. auto (default) finds a pull-and-release's decay, or treats a long wind
-record as ambient; pencil fits the free decay (matrix pencil + Levenberg-Marquardt); ambient is
-random decrement on a wind record; paper is the paper's FFT peak and half-power band.
-  --modes K     fix the number of modes (1 to 8)
-  --column N    the values are in column N (0-based; default 1, or 0 with --rate)
-  --rate HZ     the file has no time column: its rows are samples HZ apart
-  --band LO:HI  search LO..HI hertz only (default: 1.5 cycles per record to Nyquist)
-With no arguments: a synthetic decay with known f and xi, and both methods' errors.";
+/// The estimators, as named on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum MethodArg {
+    /// Decay fit, or ambient for a long wind record
+    Auto,
+    /// The paper's FFT peak and half-power band
+    Paper,
+    /// Matrix pencil + Levenberg-Marquardt on the free decay
+    Pencil,
+    /// Random decrement on a wind record
+    Ambient,
+}
+
+impl From<MethodArg> for Method {
+    fn from(m: MethodArg) -> Self {
+        match m {
+            MethodArg::Auto => Method::Auto,
+            MethodArg::Paper => Method::Paper,
+            MethodArg::Pencil => Method::Pencil,
+            MethodArg::Ambient => Method::Ambient,
+        }
+    }
+}
 
 struct Args {
     signal: PathBuf,
@@ -50,10 +93,10 @@ struct Args {
 }
 
 /// A positive finite number from an option's value.
-fn positive(option: &str, text: &str) -> Result<f64, String> {
+fn positive(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!("{option} {text:?} is not a positive number")),
+        _ => Err(format!("{text:?} is not a positive number")),
     }
 }
 
@@ -61,100 +104,56 @@ fn positive(option: &str, text: &str) -> Result<f64, String> {
 fn parse_band(text: &str) -> Result<(f64, f64), String> {
     let (lo, hi) = text
         .split_once(':')
-        .ok_or_else(|| format!("--band {text:?} is not LO:HI (hertz, e.g. 0.1:2)"))?;
+        .ok_or_else(|| format!("{text:?} is not LO:HI (hertz, e.g. 0.1:2)"))?;
     let lo: f64 = lo
         .trim()
         .parse()
-        .map_err(|_| format!("--band {text:?}: {lo:?} is not a number"))?;
-    let hi = positive("--band", hi.trim())?;
+        .map_err(|_| format!("{lo:?} is not a number"))?;
+    let hi = positive(hi.trim())?;
     if !(lo.is_finite() && lo >= 0.0 && lo < hi) {
-        return Err(format!("--band {text:?} is not a band: need 0 <= LO < HI"));
+        return Err(format!("{text:?} is not a band: need 0 <= LO < HI"));
     }
     Ok((lo, hi))
 }
 
-fn parse_args() -> Result<Option<Option<Args>>, String> {
-    let mut positional = Vec::new();
-    let (mut method, mut modes) = (None, None);
-    let (mut column, mut rate, mut band_hz) = (None, None, None);
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "-h" | "--help" => return Ok(None),
-            "--method" => {
-                let m = it
-                    .next()
-                    .ok_or("--method needs auto, paper, pencil or ambient")?;
-                method = Some(match m.as_str() {
-                    "auto" => Method::Auto,
-                    "paper" => Method::Paper,
-                    "pencil" => Method::Pencil,
-                    "ambient" => Method::Ambient,
-                    other => {
-                        return Err(format!(
-                            "unknown method {other:?}: expected auto, paper, pencil or ambient"
-                        ));
-                    }
-                });
+/// The arguments checked, `None` for the demo (no file).
+fn args(cli: Cli) -> Result<Option<Args>, String> {
+    let Some(signal) = cli.signal else {
+        return Ok(None);
+    };
+    let column = match cli.column.as_deref() {
+        None => None,
+        Some(c) => Some(match c.parse::<usize>() {
+            Ok(n) => n,
+            Err(_) => {
+                let text =
+                    std::fs::read_to_string(&signal).map_err(|e| common::naming(&signal, e))?;
+                header_column(&text, c).ok_or_else(|| {
+                    format!(
+                        "{}: --column {c:?}: no column of that name in the header",
+                        signal.display()
+                    )
+                })?
             }
-            "--modes" => {
-                let k = it.next().ok_or("--modes needs a number")?;
-                let k: usize = k
-                    .parse()
-                    .map_err(|_| format!("--modes {k:?} is not a whole number"))?;
-                modes = Some(k);
-            }
-            "--column" => {
-                let c = it.next().ok_or("--column needs a number")?;
-                column = Some(
-                    c.parse::<usize>()
-                        .map_err(|_| format!("--column {c:?} is not a column number (0-based)"))?,
-                );
-            }
-            "--rate" => {
-                let r = it.next().ok_or("--rate needs a sample rate in hertz")?;
-                rate = Some(positive("--rate", &r)?);
-            }
-            "--band" => {
-                let b = it.next().ok_or("--band needs LO:HI in hertz")?;
-                band_hz = Some(parse_band(&b)?);
-            }
-            other if other.starts_with('-') => {
-                return Err(format!("unknown option {other:?}\n\n{USAGE}"));
-            }
-            _ => positional.push(PathBuf::from(a)),
-        }
+        }),
+    };
+    let layout = match cli.rate {
+        Some(r) => CsvLayout::sampled(r, column.unwrap_or(0)),
+        None => CsvLayout {
+            value_column: column.unwrap_or(1),
+            ..CsvLayout::default()
+        },
+    };
+    if column == Some(0) && cli.rate.is_none() {
+        return Err("--column 0 is the time column; give --rate HZ if the file has none".into());
     }
-    match positional.as_slice() {
-        [] if method.is_none() && modes.is_none() && column.is_none() && rate.is_none() => {
-            Ok(Some(None))
-        }
-        [p] => {
-            let layout = match rate {
-                Some(r) => CsvLayout::sampled(r, column.unwrap_or(0)),
-                None => CsvLayout {
-                    value_column: column.unwrap_or(1),
-                    ..CsvLayout::default()
-                },
-            };
-            if column == Some(0) && rate.is_none() {
-                return Err(
-                    "--column 0 is the time column; give --rate HZ if the file has none".into(),
-                );
-            }
-            Ok(Some(Some(Args {
-                signal: p.clone(),
-                method: method.unwrap_or(Method::Auto),
-                modes,
-                layout,
-                band_hz,
-            })))
-        }
-        other => Err(format!(
-            "expected one SIGNAL_CSV, got {} paths\n\n{USAGE}",
-            other.len()
-        )),
-    }
+    Ok(Some(Args {
+        signal,
+        method: cli.method.unwrap_or(MethodArg::Auto).into(),
+        modes: cli.modes,
+        layout,
+        band_hz: cli.band,
+    }))
 }
 
 fn config(method: Method, modes: Option<usize>, band_hz: Option<(f64, f64)>) -> EstimateConfig {
@@ -203,17 +202,14 @@ fn to_json(method: Method, e: &Estimate) -> Value {
 }
 
 fn main() -> std::process::ExitCode {
-    common::run("estimate_modal", run_main)
+    let cli = Cli::parse();
+    common::run("estimate_modal", || run_main(cli))
 }
 
-fn run_main() -> Result<(), Box<dyn std::error::Error>> {
-    match parse_args()? {
-        None => {
-            println!("{USAGE}");
-            Ok(())
-        }
-        Some(None) => demo(),
-        Some(Some(args)) => {
+fn run_main(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
+    match args(cli)? {
+        None => demo(),
+        Some(args) => {
             let signal = read_signal_csv_with(&args.signal, &args.layout)
                 .map_err(|e| format!("{}: {e}", args.signal.display()))?;
             let e =

@@ -18,6 +18,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use clap::Parser;
 use serde::Serialize;
 use treemocap::kinect_io::read_point_cloud;
 use treemocap::nalgebra::Point3;
@@ -29,57 +30,37 @@ use treemocap::space_colonize::{
 
 mod common;
 
-const USAGE: &str = "usage: reconstruct_tree <CLOUD> [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv]
-
-Reconstructs a tree (space colonization, centring, pipe-model radii anchored to fitted ones)
-from a point cloud (XYZ text, PLY or PCD; metres, Z up) and prints one JSON object with the
-model's fidelity to the cloud, its size and the time taken.
-  --out-skeleton  the skeleton as JSON: {\"nodes\": [{\"id\", \"parent\", \"position\", \"radius\"}]}
-  --out-mesh      the generalized-cylinder mesh, .obj or .ply
-  --out-cylinders the cylinder table, CSV (id,parent,start_x..z,axis_x..z,length,radius,branch,order)
-With no arguments: a synthetic tree with a known skeleton, and the error against it.";
-
-#[derive(Default)]
+/// A tree model (space colonization, centring, pipe-model radii anchored to fitted ones)
+/// from a point cloud (XYZ text, PLY or PCD; metres, Z up), with its fidelity to the cloud,
+/// its size and the time taken, as one JSON object.
+///
+/// With no arguments: a synthetic tree with a known skeleton, and the error against it.
+#[derive(Parser, Debug)]
+#[command(name = "reconstruct_tree", version, about)]
 struct Args {
+    /// The point cloud: XYZ text, PLY or PCD (metres, Z up)
+    #[arg(value_name = "CLOUD")]
     cloud: Option<PathBuf>,
+    /// The skeleton as JSON: {"nodes": [{"id", "parent", "position", "radius"}]}
+    #[arg(long = "out-skeleton", value_name = "FILE")]
     skeleton: Option<PathBuf>,
+    /// The generalized-cylinder mesh, .obj or .ply
+    #[arg(long = "out-mesh", value_name = "FILE", value_parser = mesh_path)]
     mesh: Option<PathBuf>,
+    /// The cylinder table, CSV (id,parent,start_x..z,axis_x..z,length,radius,branch,order)
+    #[arg(long = "out-cylinders", value_name = "FILE")]
     cylinders: Option<PathBuf>,
 }
 
-fn parse_args() -> Result<Option<Args>, String> {
-    let mut args = Args::default();
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        let mut path = |flag: &str| {
-            it.next()
-                .map(PathBuf::from)
-                .ok_or_else(|| format!("{flag} needs a path"))
-        };
-        match a.as_str() {
-            "-h" | "--help" => return Ok(None),
-            "--out-skeleton" => args.skeleton = Some(path("--out-skeleton")?),
-            "--out-mesh" => args.mesh = Some(path("--out-mesh")?),
-            "--out-cylinders" => args.cylinders = Some(path("--out-cylinders")?),
-            s if s.starts_with("--") => return Err(format!("unknown option {s}\n\n{USAGE}")),
-            s => {
-                if args.cloud.is_some() {
-                    return Err(format!("one cloud only (also got {s})\n\n{USAGE}"));
-                }
-                args.cloud = Some(PathBuf::from(s));
-            }
-        }
+/// A mesh file name: .obj or .ply.
+fn mesh_path(text: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(text);
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    if ext.eq_ignore_ascii_case("obj") || ext.eq_ignore_ascii_case("ply") {
+        Ok(path)
+    } else {
+        Err(format!("{text}: the extension must be .obj or .ply"))
     }
-    if let Some(m) = &args.mesh {
-        let ext = m.extension().and_then(|e| e.to_str()).unwrap_or("");
-        if !ext.eq_ignore_ascii_case("obj") && !ext.eq_ignore_ascii_case("ply") {
-            return Err(format!(
-                "--out-mesh {}: the extension must be .obj or .ply",
-                m.display()
-            ));
-        }
-    }
-    Ok(Some(args))
 }
 
 #[derive(Serialize)]
@@ -141,14 +122,11 @@ fn report(
 }
 
 fn main() -> std::process::ExitCode {
-    common::run("reconstruct_tree", run_main)
+    let args = Args::parse();
+    common::run("reconstruct_tree", || run_main(&args))
 }
 
-fn run_main() -> Result<(), Box<dyn std::error::Error>> {
-    let Some(args) = parse_args()? else {
-        println!("{USAGE}");
-        return Ok(());
-    };
+fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let (name, points, truth) = match &args.cloud {
         Some(path) => {
             let cloud = read_point_cloud(path)?;

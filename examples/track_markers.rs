@@ -6,7 +6,7 @@
 //!
 //! `FRAMES_DIR` holds PNG or JPEG images, taken in name order. `INIT_JSON` is
 //! `[{"id": "A", "x": 396, "y": 158, "w": 12, "h": 12}, ...]` (top-left corner and size of
-//! each window on the first frame, pixels). The output (stdout, or `--out`) is
+//! each window on the first frame, pixels), or the capture's `markers.json` (docs/capture.md). The output (stdout, or `--out`) is
 //! `{"frames": N, "markers": [{"id", "centers": [[x, y] | null, ...], "status": [...],
 //! "confidence": [...]}], "timing": {"decode_s", "track_s"}}`, one entry per frame; `track_s`
 //! covers tracking only. A summary per marker goes to stderr: frames tracked, recovered,
@@ -19,6 +19,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use clap::Parser;
 use serde::{Deserialize, Serialize};
 use treemocap::image::RgbImage;
 use treemocap::kinect_io::read_color_image;
@@ -27,20 +28,50 @@ use treemocap::meanshift_track::synthetic::score;
 use treemocap::meanshift_track::{
     AppearanceModel, MarkerInit, PixelRect, Track, Tracker, TrackerConfig, WindowMode,
 };
+use treemocap::mocap_pipeline::MarkersFile;
 use treemocap::nalgebra::{Point2, Vector3};
 
 mod common;
 
-const USAGE: &str = "usage: track_markers <FRAMES_DIR> <INIT_JSON> [--out tracks.json] [--model hue|hs|rgb|gray] [--window fixed|adaptive] [--paper]
+/// Track every marker through a folder of frames from the windows drawn on the first one,
+/// and write JSON tracks.
+///
+/// Frames are the PNG/JPEG images of FRAMES_DIR in name order. A summary per marker goes to
+/// stderr. With no arguments: a synthetic Kinect V2 sequence, scored against its ground
+/// truth.
+#[derive(Parser, Debug)]
+#[command(name = "track_markers", version, about)]
+struct Cli {
+    /// The frames: PNG or JPEG images, taken in name order
+    #[arg(value_name = "FRAMES_DIR", requires = "init_json")]
+    frames_dir: Option<PathBuf>,
+    /// The windows on the first frame, [{"id": "A", "x": 396, "y": 158, "w": 12, "h": 12},
+    /// ...] (top-left corner and size, pixels), or the capture's markers.json
+    #[arg(value_name = "INIT_JSON")]
+    init_json: Option<PathBuf>,
+    /// Write the tracks here instead of stdout
+    #[arg(long, value_name = "FILE", requires = "frames_dir")]
+    out: Option<PathBuf>,
+    /// Appearance model: hue (the paper's), hs, rgb or gray [default: hue]
+    #[arg(long, value_name = "MODEL", value_parser = parse_model, requires = "frames_dir")]
+    model: Option<AppearanceModel>,
+    /// fixed keeps the first size; adaptive lets each window follow the marker's size
+    /// (CamShift's second moments, between half and twice the first size) [default: fixed]
+    #[arg(long, value_name = "MODE", value_parser = parse_window, requires = "frames_dir")]
+    window: Option<WindowMode>,
+    /// Plain mean-shift as the paper did (no prediction, recovery or exclusivity), for
+    /// comparison
+    #[arg(long, requires = "frames_dir")]
+    paper: bool,
+}
 
-Tracks every marker of INIT_JSON ([{\"id\": \"A\", \"x\": 396, \"y\": 158, \"w\": 12, \"h\": 12}, ...],
-windows on the first frame) through the PNG/JPEG images of FRAMES_DIR in name order and
-writes JSON tracks to stdout or to --out, and a summary per marker to stderr. Default
-model: hue (the paper's). --window adaptive lets each window follow the marker's size
-(CamShift's second moments, between half and twice the first size); fixed (the default)
-keeps the first size. --paper runs plain mean-shift as the paper did (no prediction,
-recovery or exclusivity), for comparison.
-With no arguments: a synthetic Kinect V2 sequence, scored against its ground truth.";
+fn parse_model(text: &str) -> Result<AppearanceModel, String> {
+    AppearanceModel::from_name(text).map_err(|e| e.to_string())
+}
+
+fn parse_window(text: &str) -> Result<WindowMode, String> {
+    WindowMode::from_name(text).map_err(|e| e.to_string())
+}
 
 /// Accuracy goal of the tracker: a centre within this distance of the truth (pixels).
 const TOLERANCE_PX: f64 = 3.0;
@@ -85,65 +116,19 @@ struct Args {
     paper: bool,
 }
 
-fn parse_args() -> Result<Option<Option<Args>>, String> {
-    let mut positional = Vec::new();
-    let mut out = None;
-    let mut model = AppearanceModel::PAPER;
-    let mut paper = false;
-    let mut window = WindowMode::default();
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "-h" | "--help" => return Ok(None),
-            "--out" => out = Some(PathBuf::from(it.next().ok_or("--out needs a file")?)),
-            "--paper" => paper = true,
-            "--window" => {
-                let name = it.next().ok_or("--window needs fixed or adaptive")?;
-                window = WindowMode::from_name(&name).map_err(|e| e.to_string())?;
-            }
-            "--model" => {
-                let name = it.next().ok_or("--model needs hue, hs, rgb or gray")?;
-                model = AppearanceModel::from_name(&name).map_err(|e| e.to_string())?;
-            }
-            other if other.starts_with('-') => {
-                return Err(format!("unknown option {other:?}\n\n{USAGE}"));
-            }
-            _ => positional.push(PathBuf::from(a)),
-        }
-    }
-    match positional.len() {
-        0 if out.is_none() => Ok(Some(None)),
-        2 => {
-            let init_json = positional.pop().ok_or("missing INIT_JSON")?;
-            let frames_dir = positional.pop().ok_or("missing FRAMES_DIR")?;
-            Ok(Some(Some(Args {
-                frames_dir,
-                init_json,
-                out,
-                model,
-                window,
-                paper,
-            })))
-        }
-        n => Err(format!(
-            "expected FRAMES_DIR and INIT_JSON, got {n} paths\n\n{USAGE}"
-        )),
-    }
-}
-
 fn main() -> std::process::ExitCode {
-    common::run("track_markers", run_main)
-}
-
-fn run_main() -> Result<(), Box<dyn std::error::Error>> {
-    match parse_args()? {
-        None => {
-            println!("{USAGE}");
-            Ok(())
-        }
-        Some(None) => synthetic_demo(),
-        Some(Some(args)) => track_folder(&args),
-    }
+    let cli = Cli::parse();
+    common::run("track_markers", || match (cli.frames_dir, cli.init_json) {
+        (Some(frames_dir), Some(init_json)) => track_folder(&Args {
+            frames_dir,
+            init_json,
+            out: cli.out,
+            model: cli.model.unwrap_or(AppearanceModel::PAPER),
+            window: cli.window.unwrap_or_default(),
+            paper: cli.paper,
+        }),
+        _ => synthetic_demo(),
+    })
 }
 
 /// Image files of `dir` in name order.
@@ -178,8 +163,22 @@ fn decode(path: &Path) -> Result<RgbImage, String> {
 
 fn read_inits(path: &Path) -> Result<Vec<MarkerInit>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let windows: Vec<InitWindow> =
-        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let windows: Vec<InitWindow> = if text.trim_start().starts_with('{') {
+        // The capture's markers file: its windows, to whole pixels.
+        let file = MarkersFile::parse(&text, path).map_err(|e| e.to_string())?;
+        file.markers
+            .into_iter()
+            .map(|m| InitWindow {
+                id: m.id,
+                x: m.x.round() as i32,
+                y: m.y.round() as i32,
+                w: m.w.round() as i32,
+                h: m.h.round() as i32,
+            })
+            .collect()
+    } else {
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?
+    };
     if windows.is_empty() {
         return Err(format!("{}: no windows", path.display()));
     }

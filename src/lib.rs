@@ -8,6 +8,8 @@ pub use branch_angles;
 pub use kinect_io;
 #[cfg(feature = "meanshift-track")]
 pub use meanshift_track;
+#[cfg(feature = "mocap-pipeline")]
+pub use mocap_pipeline;
 #[cfg(feature = "modal-estimate")]
 pub use modal_estimate;
 #[cfg(feature = "space-colonize")]

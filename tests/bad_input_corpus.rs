@@ -6,8 +6,9 @@
 //!
 //! - finish (no hang) and exit with a code (no abort, no signal);
 //! - never panic;
-//! - exit 0 with its output written, or non-zero with a message line `<program>: ...` that
-//!   names the broken input (its file name, or the option);
+//! - exit 0 with its output written, or non-zero with a message line `<program>: ...` (or,
+//!   for a usage error, clap's `error: ...` and exit status 2) that names the broken input
+//!   (its file name, or the option);
 //! - on failure, leave no output file behind (nothing half-written).
 //!
 //! The programs are the ones `cargo test` builds next to this test (`target/<profile>/
@@ -852,13 +853,19 @@ fn run(examples: &Path, case: &Case) -> Outcome {
     }
 }
 
-/// The line that starts with `<program>: `, with the case directory replaced by `<dir>`.
+/// Whether `line` opens a program's message: `<program>: ...` for an error of its inputs,
+/// or clap's `error: ...` for a usage error (exit status 2).
+fn opens_message(case: &Case, code: Option<i32>, line: &str) -> bool {
+    line.starts_with(&format!("{}: ", case.program))
+        || (code == Some(2) && line.starts_with("error: "))
+}
+
+/// The line that opens the message, with the case directory replaced by `<dir>`.
 fn message_line(case: &Case, o: &Outcome) -> Option<String> {
-    let prefix = format!("{}: ", case.program);
     let dir = case.dir.display().to_string();
     o.stderr
         .lines()
-        .find(|l| l.starts_with(&prefix))
+        .find(|l| opens_message(case, o.code, l))
         .map(|l| l.replace(&dir, "<dir>"))
 }
 
@@ -881,7 +888,7 @@ fn judge(case: &Case, o: &Outcome, baseline: Option<(&Case, &Outcome)>) -> Optio
     }
     let Some(line) = message_line(case, o) else {
         return Some(format!(
-            "exit {code} without a `{}: ...` message:\n{}",
+            "exit {code} without a `{}: ...` (or usage `error: ...`) message:\n{}",
             case.program, o.stderr
         ));
     };
@@ -902,11 +909,10 @@ fn judge(case: &Case, o: &Outcome, baseline: Option<(&Case, &Outcome)>) -> Optio
         return (case.program != "pipeline" || !line.contains("no branch could be measured"))
             .then(|| format!("failed on the unbroken inputs: {line}"));
     }
-    let prefix = format!("{}: ", case.program);
     let said: String = o
         .stderr
         .lines()
-        .skip_while(|l| !l.starts_with(&prefix))
+        .skip_while(|l| !opens_message(case, o.code, l))
         .collect::<Vec<_>>()
         .join("\n");
     if !case.names.iter().any(|n| said.contains(n.as_str())) {

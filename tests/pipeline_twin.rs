@@ -1,22 +1,14 @@
-//! The whole chain on a smaller twin (one marked chain of levels 1–3, shorter tests):
-//! capture, tracking, lifting, relative angles,
-//! modal estimation and reconstruction, checked against the twin's truth. The same code as
-//! `cargo run --release --example pipeline` (its modules are included from there).
+//! The whole method through the library (`treemocap::mocap_pipeline`), as a downstream crate
+//! calls it: a smaller twin (one marked chain of levels 1–3, shorter tests) measured in
+//! memory against its truth, and a twin written as a recording and measured through the
+//! recording path, which must give the same branches as the in-memory path.
 #![allow(missing_docs, clippy::expect_used, clippy::unwrap_used, clippy::panic)]
 
-#[allow(dead_code)]
-#[path = "../examples/pipeline/chain.rs"]
-mod chain;
-#[allow(dead_code)]
-#[path = "../examples/pipeline/twin.rs"]
-mod twin;
+use std::path::PathBuf;
 
-use chain::MarkerSpec;
-use treemocap::kinect_io::synth::Renderer;
-use treemocap::nalgebra::Point3;
-use treemocap::space_colonize::synthetic::skeleton_error;
-use treemocap::space_colonize::{ColonizeConfig, reconstruct};
-use twin::{Twin, TwinConfig};
+use treemocap::kinect_io::{ColorFormat, Recording};
+use treemocap::mocap_pipeline::twin::{Twin, TwinConfig};
+use treemocap::mocap_pipeline::{MarkersFile, Pipeline, PipelineConfig, Report};
 
 fn small_twin() -> TwinConfig {
     TwinConfig {
@@ -30,166 +22,172 @@ fn small_twin() -> TwinConfig {
     }
 }
 
+fn pipeline() -> Pipeline {
+    Pipeline::new(PipelineConfig {
+        threads: 2,
+        // A short animation: this test is about the measurement.
+        animation_s: 1.0,
+        ..PipelineConfig::default()
+    })
+    .expect("valid config")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("treemocap-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
 #[test]
 fn small_twin_recovers_frequency_damping_and_skeleton() {
     let twin = Twin::build(&small_twin()).expect("twin builds");
     assert_eq!(twin.markers.len(), 4, "trunk and one chain of levels 1-3");
-    let renderer = Renderer::new(&twin.synth).expect("renderer");
-    let setup = twin
-        .capture_setup(&renderer, 1.0, 5, 2)
-        .expect("capture setup");
-    let produce = |i: usize| twin.frame(&renderer, i);
-    let capture =
-        chain::capture(&setup, twin.times_s.len(), &produce, &mut |_, _| {}).expect("capture");
-    assert_eq!(capture.times_s.len(), twin.times_s.len());
-    assert!(capture.dropped.is_empty(), "{:?}", capture.dropped);
+    let report: Report = pipeline().run_twin(&twin).expect("runs");
+    assert_eq!(report.tracking.frames, twin.times_s.len());
+    assert!(
+        report.dropped_markers.is_empty(),
+        "{:?}",
+        report.dropped_markers
+    );
+    let lift_mm = report.tracking.median_lift_error_mm.expect("twin truth");
+    assert!(lift_mm < 5.0, "median lift error {lift_mm} mm");
 
-    // Lifted positions against the truth (depth camera frame).
-    let mut errors_mm = Vec::new();
-    for (k, id) in capture.ids.iter().enumerate() {
-        let m = twin.markers.iter().position(|m| m.id == *id).unwrap();
-        for (f, p) in capture.positions_m[k].iter().enumerate() {
-            if let Some(p) = p {
-                let truth = twin.synth.world_to_depth * twin.scenes[f].markers[m].center_m;
-                errors_mm.push((p - truth).norm() * 1e3);
-            }
-        }
-    }
-    errors_mm.sort_by(f64::total_cmp);
-    let median_mm = errors_mm[errors_mm.len() / 2];
-    assert!(median_mm < 5.0, "median lift error {median_mm} mm");
-
-    let mut dropped = Vec::new();
-    let hierarchy =
-        chain::hierarchy(&setup.markers, &capture.ids, &mut dropped).expect("hierarchy");
-    let cloud_to_tree = twin.synth.world_to_depth.inverse();
-    let trajectories =
-        chain::trajectories(&capture, &hierarchy, &cloud_to_tree).expect("trajectories");
-    let windows_s = twin.windows_s();
-    let branches = chain::analyse(
-        &hierarchy,
-        &trajectories,
-        treemocap::nalgebra::Vector3::z(),
-        &windows_s,
-        &chain::tracked_fractions(&capture),
-    )
-    .expect("analysis");
-    assert_eq!(branches.len(), 3);
-    for b in &branches {
-        let truth = twin.markers.iter().find(|m| m.id == b.id).unwrap().truth;
+    assert_eq!(report.branches.len(), 3);
+    for b in &report.branches {
         eprintln!(
-            "{} level {}: tracked {:.3}, f {:.4} (true {:.4}), xi {:.4} (true {:.4}), paper {:?} {:?}",
+            "{} level {}: tracked {:.3}, f {:?} (true {:?}), xi {:?} (true {:?}), paper {:?} {:?}; {:?}",
             b.id,
             b.level,
             b.tracked_fraction,
-            b.ours.map_or(f64::NAN, |m| m.frequency_hz),
-            truth.frequency_hz,
-            b.ours.map_or(f64::NAN, |m| m.damping_ratio),
-            truth.damping_ratio,
-            b.paper,
+            b.frequency_hz,
+            b.true_frequency_hz,
+            b.damping_ratio,
+            b.true_damping_ratio,
+            b.paper_frequency_hz,
+            b.paper_damping_ratio,
             b.notes
         );
     }
-    for b in &branches {
-        let truth = twin.markers.iter().find(|m| m.id == b.id).unwrap().truth;
+    for b in &report.branches {
+        let (_id, f, xi): (&str, Option<f64>, Option<f64>) =
+            (&b.id, b.frequency_hz, b.damping_ratio);
         assert!(
             b.tracked_fraction >= 0.99,
             "{}: tracked {}",
             b.id,
             b.tracked_fraction
         );
-        let ours = b
-            .ours
-            .unwrap_or_else(|| panic!("{}: no mode; {:?}", b.id, b.notes));
-        let f_err = (ours.frequency_hz - truth.frequency_hz).abs() / truth.frequency_hz;
-        let xi_err = (ours.damping_ratio - truth.damping_ratio).abs() / truth.damping_ratio;
+        let f = f.unwrap_or_else(|| panic!("{}: no mode; {:?}", b.id, b.notes));
+        let xi = xi.expect("a mode has a damping ratio");
+        let (f_true, xi_true) = (b.true_frequency_hz.unwrap(), b.true_damping_ratio.unwrap());
         // The goals: f within 1 %, xi within 15 %, on every level.
-        let (f_tol, xi_tol) = (0.01, 0.15);
         assert!(
-            f_err < f_tol,
-            "{} level {}: f {} vs {}",
+            (f - f_true).abs() / f_true < 0.01,
+            "{} level {}: f {f} vs {f_true}",
             b.id,
-            b.level,
-            ours.frequency_hz,
-            truth.frequency_hz
+            b.level
         );
         assert!(
-            xi_err < xi_tol,
-            "{} level {}: xi {} vs {}",
+            (xi - xi_true).abs() / xi_true < 0.15,
+            "{} level {}: xi {xi} vs {xi_true}",
             b.id,
-            b.level,
-            ours.damping_ratio,
-            truth.damping_ratio
+            b.level
         );
         // The paper's FFT reads a bin: a multiple of its bin width.
-        let (f_paper, _) = b.paper.expect("paper method ran");
-        let bins = f_paper / b.paper_bin_hz.unwrap();
+        let bins = b.paper_frequency_hz.expect("paper method ran") / b.paper_bin_width_hz.unwrap();
         assert!((bins - bins.round()).abs() < 1e-6, "{}: {bins} bins", b.id);
     }
 
-    // The static tree from the still frames, against the true skeleton.
-    let points: Vec<Point3<f64>> = capture
-        .static_points_m
-        .iter()
-        .map(|p| cloud_to_tree * p)
-        .filter(|p| p.z > 0.04 && p.y.abs() < 0.8)
-        .collect();
-    let recon = reconstruct(&points, &ColonizeConfig::default()).expect("reconstruction");
-    let error = skeleton_error(&recon.skeleton, &twin.skeleton);
-    assert!(
-        error.mean_skeleton_error_m < 0.015,
-        "mean skeleton error {} m",
-        error.mean_skeleton_error_m
+    // The static tree from the still frames, against the true skeleton, with the same crop
+    // as the example (the library's).
+    let rec = &report.reconstruction;
+    let mean = rec.mean_skeleton_error_m.expect("twin truth");
+    assert!(mean < 0.015, "mean skeleton error {mean} m");
+    let found = rec.truth_length_found.expect("twin truth");
+    assert!(found > 0.7, "{found} of the true length found");
+    assert_eq!(
+        report.animation.frames, 31,
+        "1 s at 30 fps and the rest pose"
     );
-    assert!(
-        error.truth_length_found > 0.7,
-        "{}",
-        error.truth_length_found
-    );
-}
 
-#[test]
-fn twin_config_that_cannot_work_is_an_error() {
-    for bad in [
-        TwinConfig {
-            fps_hz: 0.0,
-            ..small_twin()
-        },
-        TwinConfig {
-            chains: 0,
-            ..small_twin()
-        },
-        TwinConfig {
-            marker_radius_m: f64::NAN,
-            ..small_twin()
-        },
+    // The report's files, and the JSON keys of the contract.
+    let dir = scratch("report");
+    report.write_all(&dir).expect("writes");
+    let json = std::fs::read_to_string(dir.join("report.json")).expect("report.json");
+    for key in [
+        "branches",
+        "id",
+        "level",
+        "tracked_fraction",
+        "true_frequency_hz",
+        "frequency_hz",
+        "paper_frequency_hz",
+        "true_damping_ratio",
+        "damping_ratio",
+        "paper_damping_ratio",
+        "reconstruction",
+        "mean_skeleton_error_m",
+        "seconds",
     ] {
-        let e = Twin::build(&bad).err().expect("an error");
-        assert!(e.starts_with("twin "), "{e}");
+        assert!(
+            json.contains(&format!("\"{key}\":")),
+            "report.json lacks {key}"
+        );
     }
+    for file in [
+        "report.md",
+        "tree.glb",
+        "tree.bvh",
+        "skeleton.json",
+        "projection.png",
+    ] {
+        assert!(dir.join(file).is_file(), "{file} not written");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
-fn a_window_off_the_first_frame_drops_that_marker_and_its_children_only() {
-    let spec = |id: &str, parent: Option<&str>, x: f64| MarkerSpec {
-        id: id.into(),
-        parent: parent.map(str::to_string),
-        center: treemocap::nalgebra::Point2::new(x, 10.0),
-        size_px: 7,
+fn the_recording_path_gives_the_in_memory_result_on_the_same_frames() {
+    // A short twin (1 s tests at 15 fps, half-size colour) keeps the PNG recording small.
+    let config = TwinConfig {
+        seed: 11,
+        chains: 1,
+        fps_hz: 15.0,
+        color_scale: 0.5,
+        decay_s: [1.5, 1.5, 1.5],
+        ..TwinConfig::default()
     };
-    let markers = vec![
-        spec("A", None, 10.0),
-        spec("B", Some("A"), 20.0),
-        spec("C", Some("B"), 30.0),
-        spec("D", Some("A"), 40.0),
-    ];
-    // B was not tracked (its window lay off the image): C loses its parent.
-    let tracked = vec!["A".to_string(), "C".to_string(), "D".to_string()];
-    let mut dropped = Vec::new();
-    let h = chain::hierarchy(&markers, &tracked, &mut dropped).expect("hierarchy");
-    let ids: Vec<&str> = h.markers().iter().map(|m| m.id.as_str()).collect();
-    assert_eq!(ids, ["A", "D"]);
-    assert_eq!(dropped.len(), 1);
-    assert_eq!(dropped[0].0, "C");
-    assert!(dropped[0].1.contains("parent B"), "{}", dropped[0].1);
+    let twin = Twin::build(&config).expect("twin builds");
+    let pipeline = pipeline();
+    let memory = pipeline.run_twin(&twin).expect("in memory");
+    let dir = scratch("recording");
+    let written = pipeline
+        .write_twin_recording(&twin, &dir, ColorFormat::Png)
+        .expect("writes the recording");
+    let markers = MarkersFile::read(&dir.join("markers.json")).expect("markers file");
+    assert_eq!(markers.markers, written.markers);
+    let recording = Recording::open(&dir).expect("opens");
+    let from_file = pipeline.run(&recording, &markers).expect("recording path");
+    let _ = std::fs::remove_dir_all(&dir);
+
+    assert_eq!(memory.branches.len(), from_file.branches.len());
+    assert_eq!(memory.tracking.frames, from_file.tracking.frames);
+    for (a, b) in memory.branches.iter().zip(&from_file.branches) {
+        assert_eq!(a.id, b.id);
+        assert_eq!(a.tracked_fraction, b.tracked_fraction, "{}", a.id);
+        assert_eq!(a.lifted_fraction, b.lifted_fraction, "{}", a.id);
+        let close = |x: Option<f64>, y: Option<f64>, what: &str| match (x, y) {
+            (Some(x), Some(y)) => assert!(
+                (x - y).abs() <= 1e-6 * x.abs().max(1e-9),
+                "{} {what}: {x} in memory, {y} from the recording",
+                a.id
+            ),
+            (None, None) => {}
+            _ => panic!("{} {what}: {x:?} in memory, {y:?} from the recording", a.id),
+        };
+        close(a.frequency_hz, b.frequency_hz, "f");
+        close(a.damping_ratio, b.damping_ratio, "xi");
+        close(a.paper_frequency_hz, b.paper_frequency_hz, "paper f");
+        close(a.paper_damping_ratio, b.paper_damping_ratio, "paper xi");
+    }
 }

@@ -37,3 +37,49 @@ pub fn naming(path: &std::path::Path, error: impl std::fmt::Display) -> String {
         format!("{shown}: {message}")
     }
 }
+
+/// The folder an example writes its demo output to when not told otherwise:
+/// `target/treemocap-demo/<program>/` (or under `$CARGO_TARGET_DIR`), one per program so
+/// that no example overwrites another's files.
+#[allow(dead_code)] // not every program writes demo output
+pub fn demo_dir(program: &str) -> std::path::PathBuf {
+    let target = std::env::var_os("CARGO_TARGET_DIR").map_or_else(
+        || std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target"),
+        std::path::PathBuf::from,
+    );
+    target.join("treemocap-demo").join(program)
+}
+
+/// Progress of a long stage on stderr, one line rewritten in place at most twice a second.
+#[allow(dead_code)] // not every program has long stages
+pub struct ProgressLine {
+    last: std::sync::Mutex<Option<std::time::Instant>>,
+}
+
+#[allow(dead_code)]
+impl ProgressLine {
+    /// A progress line that has printed nothing yet.
+    pub fn new() -> Self {
+        Self {
+            last: std::sync::Mutex::new(None),
+        }
+    }
+
+    /// Show `done` of `total` steps of `stage`.
+    pub fn show(&self, stage: &str, done: usize, total: usize) {
+        let Ok(mut last) = self.last.lock() else {
+            return;
+        };
+        let due = last.is_none_or(|t| t.elapsed().as_secs_f64() > 0.5);
+        if done == total || due {
+            *last = Some(std::time::Instant::now());
+            eprint!(
+                "\r{stage:<12} {done}/{total} ({:.0} %)   ",
+                100.0 * done as f64 / total.max(1) as f64
+            );
+            if done == total {
+                eprintln!();
+            }
+        }
+    }
+}

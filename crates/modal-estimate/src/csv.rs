@@ -86,6 +86,22 @@ impl CsvLayout {
     }
 }
 
+/// The 0-based index of the column named `name` in the header of a signal file's `text`
+/// (its first non-blank line, when that line is a header: not all numbers), so that a
+/// file with named columns, such as branch-angles' `t,<branch>...`, can be read by name.
+/// `None` when the file has no header or no such column.
+pub fn header_column(text: &str, name: &str) -> Option<usize> {
+    let line = text.lines().map(str::trim).find(|l| !l.is_empty())?;
+    let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+    let header = fields
+        .iter()
+        .any(|f| !f.is_empty() && f.parse::<f64>().is_err());
+    if !header {
+        return None;
+    }
+    fields.iter().position(|f| *f == name.trim())
+}
+
 /// Parse a signal CSV laid out as `t,value` ([`CsvLayout::default`]). A first line whose
 /// fields are not all numbers is a header and is skipped; blank lines are skipped; every
 /// other line holds a timestamp in seconds and a value (empty for a missing sample).
@@ -286,5 +302,24 @@ mod tests {
             let signal = Signal::new(times, values).unwrap();
             prop_assert_eq!(parse_signal_csv(&signal_to_csv(&signal)).unwrap(), signal);
         }
+    }
+}
+
+#[cfg(test)]
+mod header_tests {
+    use super::*;
+
+    #[test]
+    fn columns_are_found_by_name_in_a_header_only() {
+        let text = "\n t, B , C\n0,1,2\n";
+        assert_eq!(header_column(text, "C"), Some(2));
+        assert_eq!(header_column(text, "B"), Some(1));
+        assert_eq!(header_column(text, "D"), None);
+        assert_eq!(
+            header_column("0,1,2\n", "0"),
+            None,
+            "numbers are not a header"
+        );
+        assert_eq!(header_column("", "t"), None);
     }
 }

@@ -3,21 +3,28 @@
 //! limbs, a pull-and-release simulated with beam-anim, and the scene of every frame for
 //! kinect-io's `synth` renderer.
 //!
-//! Shared by `examples/pipeline` and the cross-crate test `tests/pipeline_twin.rs`.
+//! Behind the feature `twin`. Errors are [`PipelineError::Twin`] with the reason.
 
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
-use treemocap::beam_anim::{
-    AnimConfig, BeamTree, Dynamics, GREEN_WOOD_DENSITY_KG_M3, SEGMENTS, Simulation,
-};
-use treemocap::kinect_io::synth::{
+use beam_anim::{AnimConfig, BeamTree, Dynamics, GREEN_WOOD_DENSITY_KG_M3, SEGMENTS, Simulation};
+use kinect_io::synth::{
     MARKER_RGB, Marker, Primitive, Renderer, Scene, SensorNoise, Shape, SynthConfig,
 };
-use treemocap::nalgebra::{Isometry3, Point2, Point3, UnitQuaternion, Vector3};
-use treemocap::space_colonize::{Skeleton, SkeletonNode};
+use nalgebra::{Point2, Point3, UnitQuaternion, Vector3};
+use space_colonize::{Skeleton, SkeletonNode};
 
-use crate::chain::{CaptureSetup, MarkerSpec, RawFrame};
+use crate::capture::RawFrame;
+
+mod run;
+use crate::error::{PipelineError, Result};
+pub use run::{TRACK_TOLERANCE_PX, TWIN_JPEG_QUALITY};
+
+/// A twin failure as the pipeline's error.
+pub(crate) fn twin_error(reason: String) -> PipelineError {
+    PipelineError::Twin { reason }
+}
 
 /// The paper's dominant frequency (Table 1: more than 85 % of the branches at 1.46 Hz).
 pub const SHARED_FREQUENCY_HZ: f64 = 1.46;
@@ -326,7 +333,11 @@ impl Twin {
     ///
     /// # Errors
     /// A message when a configuration value cannot work or a library call fails.
-    pub fn build(config: &TwinConfig) -> Result<Self, String> {
+    pub fn build(config: &TwinConfig) -> Result<Self> {
+        Self::build_inner(config).map_err(twin_error)
+    }
+
+    fn build_inner(config: &TwinConfig) -> Result<Self, String> {
         let checks = [
             ("fps_hz", config.fps_hz, 5.0, 240.0),
             ("decay_s[0]", config.decay_s[0], 1.0, 120.0),
@@ -656,7 +667,16 @@ impl Twin {
     /// The user's first-frame windows: each marker's true centre on the colour image with
     /// a placement error, a square about 1.4 marker diameters wide, on the plane of
     /// `renderer`'s colour camera scaled by `plane_scale`.
-    pub fn windows(&self, renderer: &Renderer, plane_scale: f64) -> Result<Vec<Window>, String> {
+    ///
+    /// # Errors
+    /// [`PipelineError::Twin`] when the first frame cannot be rendered or a marker is not
+    /// visible on it.
+    pub fn windows(&self, renderer: &Renderer, plane_scale: f64) -> Result<Vec<Window>> {
+        self.windows_inner(renderer, plane_scale)
+            .map_err(twin_error)
+    }
+
+    fn windows_inner(&self, renderer: &Renderer, plane_scale: f64) -> Result<Vec<Window>, String> {
         let frame = renderer
             .render(&self.scenes[0], self.config.seed)
             .map_err(|e| format!("twin first frame: {e}"))?;
@@ -688,58 +708,17 @@ impl Twin {
 }
 
 impl Twin {
-    /// How the capture is tracked: the projection image on the colour camera's plane scaled
-    /// by `plane_scale`, the markers with the user's first-frame windows.
-    ///
-    /// # Errors
-    /// A message when the plane cannot be scaled or a marker is not on the first frame.
-    pub fn capture_setup(
-        &self,
-        renderer: &Renderer,
-        plane_scale: f64,
-        static_frames: usize,
-        threads: usize,
-    ) -> Result<CaptureSetup, String> {
-        let calibration = &self.synth.calibration;
-        let plane = calibration
-            .color_camera
-            .scaled(plane_scale)
-            .map_err(|e| format!("projection plane: {e}"))?;
-        let cloud_to_plane = calibration
-            .depth_to_color()
-            .map_err(|e| format!("calibration: {e}"))?
-            .unwrap_or_else(Isometry3::identity);
-        let windows = self.windows(renderer, plane_scale)?;
-        let markers = self
-            .markers
-            .iter()
-            .zip(&windows)
-            .map(|(m, w)| MarkerSpec {
-                id: m.id.clone(),
-                parent: m.parent.clone(),
-                center: w.center,
-                size_px: w.size_px,
-            })
-            .collect();
-        Ok(CaptureSetup {
-            calibration: calibration.clone(),
-            plane,
-            cloud_to_plane,
-            markers,
-            static_frames,
-            threads,
-        })
-    }
-
     /// Frame `i` of the capture, with the sensor noise of its own seed.
     ///
     /// # Errors
     /// A message naming the frame when it cannot be rendered.
-    pub fn frame(&self, renderer: &Renderer, i: usize) -> Result<RawFrame, String> {
-        let scene = self
-            .scenes
-            .get(i)
-            .ok_or_else(|| format!("frame {i}: the twin has {} frames", self.scenes.len()))?;
+    pub fn frame(&self, renderer: &Renderer, i: usize) -> Result<RawFrame> {
+        let scene = self.scenes.get(i).ok_or_else(|| {
+            twin_error(format!(
+                "frame {i}: the twin has {} frames",
+                self.scenes.len()
+            ))
+        })?;
         let seed = self
             .config
             .seed
@@ -747,7 +726,7 @@ impl Twin {
             .wrapping_add(i as u64);
         let frame = renderer
             .render(scene, seed)
-            .map_err(|e| format!("frame {i}: render: {e}"))?;
+            .map_err(|e| PipelineError::frame(i, "render", e))?;
         Ok(RawFrame {
             time_s: self.times_s[i],
             depth: frame.depth,
@@ -826,5 +805,31 @@ fn scene(
         ground: Some((0.0, GRASS_RGB)),
         sky_rgb: SKY_RGB,
         light_direction: Vector3::new(0.3, -0.6, 1.0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn twin_config_that_cannot_work_is_an_error() {
+        for bad in [
+            TwinConfig {
+                fps_hz: 0.0,
+                ..TwinConfig::default()
+            },
+            TwinConfig {
+                chains: 0,
+                ..TwinConfig::default()
+            },
+            TwinConfig {
+                marker_radius_m: f64::NAN,
+                ..TwinConfig::default()
+            },
+        ] {
+            let e = Twin::build(&bad).err().expect("an error").to_string();
+            assert!(e.starts_with("digital twin: twin "), "{e}");
+        }
     }
 }
