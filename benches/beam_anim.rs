@@ -17,7 +17,7 @@ fn beam_anim(c: &mut Criterion) {
     for &n in sizes {
         let sk = procedural_tree(n, 7).unwrap();
         let config = AnimConfig::default();
-        let tree = BeamTree::new(&sk, config.wood_density_kg_m3, &config.wind.direction).unwrap();
+        let tree = BeamTree::new(&sk, &config).unwrap();
         let dynamics = vec![PAPER_DYNAMICS; tree.branches().len()];
         let mut sim = Simulation::new(tree, &dynamics, config, 1.0 / 30.0).unwrap();
         let mut wind = sim.wind_field().unwrap();

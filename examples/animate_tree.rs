@@ -240,8 +240,7 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     config.wind.mean_speed_m_s = args.wind_speed_m_s;
     // Every error names the input it is about: the skeleton file, the dynamics file or the
     // option.
-    let tree = BeamTree::new(&skeleton, config.wood_density_kg_m3, &config.wind.direction)
-        .map_err(|e| format!("{name}: {e}"))?;
+    let tree = BeamTree::new(&skeleton, &config).map_err(|e| format!("{name}: {e}"))?;
     let (dynamics_name, spec) = match &args.dynamics {
         Some(p) => (
             p.display().to_string(),

@@ -24,8 +24,7 @@ fn released_branch_is_measured_back_by_modal_estimate_at_display_rates() {
         damping_ratio: 0.086,
     };
     for fps in [24.0, 30.0, 60.0] {
-        let tree =
-            BeamTree::new(&skeleton, config.wood_density_kg_m3, &config.wind.direction).unwrap();
+        let tree = BeamTree::new(&skeleton, &config).unwrap();
         let target = tree.branches().len() - 1;
         let id = tree.branches()[target].id;
         let mut dynamics = vec![PAPER_DYNAMICS; tree.branches().len()];

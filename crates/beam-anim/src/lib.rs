@@ -12,7 +12,7 @@
 //!
 //! let skeleton = SyntheticConfig { points: 2_000, ..Default::default() }.generate()?.skeleton;
 //! let config = AnimConfig::default();
-//! let tree = BeamTree::new(&skeleton, config.wood_density_kg_m3, &config.wind.direction)?;
+//! let tree = BeamTree::new(&skeleton, &config)?;
 //! let dynamics = vec![PAPER_DYNAMICS; tree.branches().len()];
 //! let mut sim = Simulation::new(tree, &dynamics, config, 1.0 / 30.0)?;
 //! let mut wind = sim.wind_field()?;

@@ -1,6 +1,8 @@
 //! Procedural trees of any size, for benchmarks and tests.
 
 use nalgebra::{Point3, UnitQuaternion, Vector3};
+use rand_xoshiro::SplitMix64;
+use rand_xoshiro::rand_core::{RngCore, SeedableRng};
 use space_colonize::{Skeleton, SkeletonNode};
 
 use crate::error::{AnimError, Result};
@@ -20,14 +22,8 @@ pub fn procedural_tree(branches: usize, seed: u64) -> Result<Skeleton> {
             "0; a tree has at least its trunk",
         ));
     }
-    let mut rng = seed;
-    let mut uniform = move || {
-        rng = rng.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = rng;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = SplitMix64::seed_from_u64(seed);
+    let mut uniform = move || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
     let mut nodes: Vec<SkeletonNode> = Vec::with_capacity(branches * SEGMENTS + 1);
     // (first node, direction, length, base radius) per branch.
     let mut made: Vec<(usize, Vector3<f64>, f64, f64)> = Vec::with_capacity(branches);

@@ -909,7 +909,7 @@ mod tests {
         let sk = crate::procedural_tree(60, 11).unwrap();
         let mut config = AnimConfig::default();
         config.wind.mean_speed_m_s = 25.0;
-        let tree = BeamTree::new(&sk, config.wood_density_kg_m3, &config.wind.direction).unwrap();
+        let tree = BeamTree::new(&sk, &config).unwrap();
         let d = vec![crate::PAPER_DYNAMICS; tree.branches().len()];
         let mut paired = Simulation::new(tree, &d, config, 1.0 / 30.0).unwrap();
         let mut single = Simulation::new(paired.tree().clone(), &d, config, 1.0 / 30.0).unwrap();

@@ -47,41 +47,17 @@ pub struct BeamTree {
     by_id: HashMap<usize, usize>,
 }
 
-/// One node of space-colonize's skeleton JSON.
-#[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct JsonNode {
-    id: usize,
-    parent: Option<usize>,
-    position: [f64; 3],
-    radius: f64,
-}
-
-/// space-colonize's skeleton JSON: `{"nodes": [{"id", "parent", "position", "radius"}]}`.
-#[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct JsonSkeleton {
-    nodes: Vec<JsonNode>,
-}
-
-/// Parse space-colonize's skeleton JSON and check it with [`validate_nodes`]; `path` names
-/// the text in errors.
+/// Parse space-colonize's skeleton JSON with space-colonize's own reader
+/// ([`space_colonize::skeleton_nodes_from_json`]) and check it with [`validate_nodes`]
+/// (this crate's typed errors, ranges and segment rules); `path` names the text in errors.
 ///
 /// # Errors
 /// [`AnimError::Format`] for JSON that is not a skeleton, then as [`validate_nodes`].
 pub fn skeleton_from_json(text: &str, path: &std::path::Path) -> Result<Skeleton> {
-    let doc: JsonSkeleton =
-        serde_json::from_str(text).map_err(|e| AnimError::format(path, e.to_string()))?;
-    let nodes: Vec<SkeletonNode> = doc
-        .nodes
-        .into_iter()
-        .map(|n| SkeletonNode {
-            id: n.id,
-            parent: n.parent,
-            position: Point3::from(n.position),
-            radius_m: n.radius,
-        })
-        .collect();
+    let nodes = space_colonize::skeleton_nodes_from_json(text, path).map_err(|e| match e {
+        space_colonize::ColonizeError::Format { reason, .. } => AnimError::format(path, reason),
+        other => AnimError::format(path, other.to_string()),
+    })?;
     validate_nodes(&nodes)
 }
 
@@ -235,13 +211,22 @@ fn lerp_point(a: &Point3<f64>, b: &Point3<f64>, t: f64) -> Point3<f64> {
 }
 
 impl BeamTree {
+    /// Beams from a skeleton for an animation configured by `config`: its wood density, and
+    /// u axes toward its wind's direction.
+    ///
+    /// # Errors
+    /// As [`BeamTree::with_density`].
+    pub fn new(skeleton: &Skeleton, config: &crate::AnimConfig) -> Result<Self> {
+        Self::with_density(skeleton, config.wood_density_kg_m3, &config.wind.direction)
+    }
+
     /// Beams from a skeleton, with u axes toward `reference_direction` (the wind's).
     ///
     /// # Errors
     /// [`AnimError::ZeroLengthSegment`] for a segment without length,
     /// [`AnimError::InvalidParameter`] for a density that is not positive or a reference
     /// direction that is not finite.
-    pub fn new(
+    pub fn with_density(
         skeleton: &Skeleton,
         wood_density_kg_m3: f64,
         reference_direction: &Vector3<f64>,

@@ -2,6 +2,8 @@
 //! spectrum's filter (it never loops), advected as frozen turbulence, and the drag it puts
 //! on a segment.
 
+use rand_xoshiro::SplitMix64;
+use rand_xoshiro::rand_core::{RngCore, SeedableRng};
 use std::sync::Arc;
 
 use nalgebra::Vector3;
@@ -204,7 +206,7 @@ struct NoiseStream {
     taps: usize,
     out: Vec<f64>,
     next: usize,
-    rng: u64,
+    rng: SplitMix64,
     spare: Option<f64>,
     scratch: Vec<Complex<f64>>,
 }
@@ -261,7 +263,7 @@ impl NoiseStream {
             taps,
             out: Vec::new(),
             next: 0,
-            rng: seed,
+            rng: SplitMix64::seed_from_u64(seed),
             spare: None,
             scratch: vec![Complex::new(0.0, 0.0); n],
         };
@@ -272,12 +274,8 @@ impl NoiseStream {
     }
 
     fn uniform(&mut self) -> f64 {
-        // SplitMix64.
-        self.rng = self.rng.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.rng;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        // SplitMix64 (rand_xoshiro's, the workspace's one generator).
+        (self.rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 
     fn gaussian(&mut self) -> f64 {

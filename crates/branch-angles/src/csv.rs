@@ -28,7 +28,7 @@ pub const TRAJECTORY_HEADER: &str = "t,id,x,y,z";
 /// [`AngleError::Io`] naming the file.
 pub fn read_text(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).map_err(|source| AngleError::Io {
-        path: path.display().to_string(),
+        path: path.to_path_buf(),
         source,
     })
 }
@@ -39,7 +39,7 @@ pub fn read_text(path: &Path) -> Result<String> {
 /// [`AngleError::Io`] naming the file.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
     std::fs::write(path, text).map_err(|source| AngleError::Io {
-        path: path.display().to_string(),
+        path: path.to_path_buf(),
         source,
     })
 }

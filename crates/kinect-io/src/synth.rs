@@ -9,6 +9,7 @@
 
 use image::RgbImage;
 use nalgebra::{Isometry3, Point2, Point3, Translation3, Vector3};
+use rand_xoshiro::rand_core::{RngCore, SeedableRng};
 
 use crate::calibration::{Calibration, RegistrationModel, camera_to_world_z_up};
 use crate::camera::CameraModel;
@@ -239,20 +240,17 @@ pub struct SynthFrame {
 
 /// SplitMix64 (Steele, Lea, Flood 2014): small, fast, and stable across versions of anything,
 /// so a seed gives the same frame forever.
+/// `rand_xoshiro`'s, the workspace's one generator.
 #[derive(Debug, Clone)]
-pub(crate) struct SplitMix64(u64);
+pub(crate) struct SplitMix64(rand_xoshiro::SplitMix64);
 
 impl SplitMix64 {
     pub(crate) fn new(seed: u64) -> Self {
-        Self(seed)
+        Self(rand_xoshiro::SplitMix64::seed_from_u64(seed))
     }
 
     pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// Uniform in [0, 1).

@@ -40,14 +40,29 @@ pub struct BranchResult {
     pub paper_bin_hz: Option<f64>,
     /// Why a value is missing, when one is.
     pub notes: Vec<String>,
-    /// The angle series fitted (times, radians), for figures.
+    /// The signed relative angle that moves most (times, radians), for figures.
     pub series: (Vec<f64>, Vec<Option<f64>>),
+    /// The signal ours was fitted on (times, values): the child's displacement from its
+    /// parent's marker along its main direction of motion, metres, or the signed angle,
+    /// radians, when that displacement cannot be formed.
+    pub fitted: FittedSignal,
     /// Fitted segment, seconds.
     pub segment_s: Option<(f64, f64)>,
     /// The branch's test window, seconds, when one was given.
     pub window_s: Option<(f64, f64)>,
     /// How far each number can be trusted.
     pub quality: BranchQuality,
+}
+
+/// The signal our estimate was fitted on.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FittedSignal {
+    /// Frame times, seconds.
+    pub times_s: Vec<f64>,
+    /// Values (`None` where the marker or its parent has no position).
+    pub values: Vec<Option<f64>>,
+    /// `true` for a displacement in metres, `false` for the angle fallback in radians.
+    pub displacement: bool,
 }
 
 /// The quality behind a branch's numbers: what the tracker, the lift and the fit saw inside
@@ -274,6 +289,7 @@ pub fn analyse(
             paper_bin_hz: None,
             notes: Vec::new(),
             series: (times.clone(), Vec::new()),
+            fitted: FittedSignal::default(),
             segment_s: None,
             window_s: None,
             quality: BranchQuality::default(),
@@ -318,6 +334,15 @@ pub fn analyse(
                 d.iter().map(Option::is_some).collect::<Vec<bool>>(),
             ),
             None => (series.values.clone(), series.measured.clone()),
+        };
+        result.fitted = FittedSignal {
+            times_s: times.clone(),
+            values: values
+                .iter()
+                .zip(&measured)
+                .map(|(v, m)| v.filter(|_| *m))
+                .collect(),
+            displacement: displacement.is_some(),
         };
         match Signal::from_measured(times.clone(), values, &measured).and_then(|signal| {
             let signal = window(signal);
@@ -649,6 +674,7 @@ mod tests {
             paper_bin_hz: None,
             notes: Vec::new(),
             series: (Vec::new(), Vec::new()),
+            fitted: FittedSignal::default(),
             segment_s: None,
             window_s: None,
             quality: BranchQuality::default(),

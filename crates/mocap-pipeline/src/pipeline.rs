@@ -188,6 +188,8 @@ pub(crate) struct Measured {
     pub(crate) branches: Vec<BranchResult>,
     pub(crate) dropped: Vec<DroppedMarker>,
     pub(crate) cloud_to_tree: Isometry3<f64>,
+    /// The markers' first-frame windows on the tracking plane.
+    pub(crate) markers: Vec<MarkerSpec>,
 }
 
 /// What only a twin knows: the truth to compare with.
@@ -360,6 +362,7 @@ impl Pipeline {
             branches,
             dropped,
             cloud_to_tree,
+            markers: setup.markers.clone(),
         })
     }
 
@@ -442,7 +445,16 @@ impl Pipeline {
                 branch_results: measured.branches,
                 skeleton: recon.skeleton,
                 animation,
-                projection: measured.capture.first_projection,
+                projection: {
+                    let mut image = measured.capture.first_projection;
+                    let marks: Vec<(String, Point2<f64>, i32)> = measured
+                        .markers
+                        .iter()
+                        .map(|m| (m.id.clone(), m.center, m.size_px))
+                        .collect();
+                    crate::report::annotate(&mut image, &marks);
+                    image
+                },
             },
         })
     }
@@ -521,8 +533,7 @@ impl Pipeline {
             },
             ..AnimConfig::default()
         };
-        let beam = BeamTree::new(skeleton, config.wood_density_kg_m3, &config.wind.direction)
-            .stage("animation beams")?;
+        let beam = BeamTree::new(skeleton, &config).stage("animation beams")?;
         let assignment = spec.assign(&beam).stage("dynamics")?;
         let measured_branches = assignment
             .source

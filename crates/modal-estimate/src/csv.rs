@@ -218,7 +218,7 @@ pub fn read_signal_csv(path: &Path) -> Result<Signal> {
 /// [`parse_signal_csv_with`].
 pub fn read_signal_csv_with(path: &Path, layout: &CsvLayout) -> Result<Signal> {
     let text = std::fs::read_to_string(path).map_err(|source| ModalError::Io {
-        path: path.display().to_string(),
+        path: path.to_path_buf(),
         source,
     })?;
     parse_signal_csv_with(&text, layout)

@@ -154,10 +154,10 @@ pub enum ModalError {
         message: String,
     },
     /// A file that could not be read or written.
-    #[error("{path}: {source}")]
+    #[error("{}: {source}", path.display())]
     Io {
         /// The file.
-        path: String,
+        path: std::path::PathBuf,
         /// The cause.
         #[source]
         source: std::io::Error,

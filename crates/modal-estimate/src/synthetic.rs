@@ -2,6 +2,8 @@
 //! issue's Monte Carlo: jitter, drops, offset, drift, a held stretch, a second mode, noise)
 //! and ambient records (a modal oscillator driven by white noise).
 
+use rand_xoshiro::SplitMix64;
+use rand_xoshiro::rand_core::{RngCore, SeedableRng};
 use serde::Serialize;
 
 use crate::error::{ModalError, Result};
@@ -11,22 +13,19 @@ use crate::signal::Signal;
 const TAU: f64 = std::f64::consts::TAU;
 
 /// SplitMix64 (Steele, Lea, Flood 2014): a seed gives the same record forever.
+/// (`rand_xoshiro`'s, the workspace's one generator.)
 #[derive(Debug, Clone)]
-pub struct Rng(u64);
+pub struct Rng(SplitMix64);
 
 impl Rng {
     /// A generator from a seed.
     #[must_use]
     pub fn new(seed: u64) -> Self {
-        Self(seed ^ 0x6d6f_6461_6c00_0000) // "modal"
+        Self(SplitMix64::seed_from_u64(seed ^ 0x6d6f_6461_6c00_0000)) // "modal"
     }
 
     fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// Uniform in [0, 1).

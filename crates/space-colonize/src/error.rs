@@ -99,18 +99,18 @@ pub enum ColonizeError {
         reason: String,
     },
     /// A file could not be read or written.
-    #[error("{path}: {source}")]
+    #[error("{}: {source}", path.display())]
     Io {
         /// The file.
-        path: String,
+        path: std::path::PathBuf,
         /// The cause.
         source: std::io::Error,
     },
     /// A file that is not in the expected format.
-    #[error("{path}: {reason}")]
+    #[error("{}: {reason}", path.display())]
     Format {
         /// The file.
-        path: String,
+        path: std::path::PathBuf,
         /// What is wrong, with the line where known.
         reason: String,
     },
@@ -132,7 +132,7 @@ impl ColonizeError {
 
     pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
         Self::Io {
-            path: path.display().to_string(),
+            path: path.to_path_buf(),
             source,
         }
     }

@@ -71,7 +71,7 @@ pub use error::{ColonizeError, Result};
 pub use reconstruct::{
     FAR_TIP_SPACINGS, GrowthReport, Reconstruction, Stage, reconstruct, reconstruct_with_progress,
 };
-pub use skeleton::{Branch, MAX_INSIDE_RADII, Skeleton, SkeletonNode};
+pub use skeleton::{Branch, MAX_INSIDE_RADII, Skeleton, SkeletonNode, skeleton_nodes_from_json};
 
 pub use geometry::{
     Cylinder, DEFAULT_MESH_SIDES, MAX_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv,

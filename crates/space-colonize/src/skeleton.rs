@@ -362,21 +362,7 @@ impl Skeleton {
     /// # Errors
     /// [`ColonizeError::Format`] for JSON that does not match, then as [`Skeleton::new`].
     pub fn from_json(text: &str, path: &Path) -> Result<Self> {
-        let doc: JsonSkeleton = serde_json::from_str(text).map_err(|e| ColonizeError::Format {
-            path: path.display().to_string(),
-            reason: e.to_string(),
-        })?;
-        Self::new(
-            doc.nodes
-                .into_iter()
-                .map(|x| SkeletonNode {
-                    id: x.id,
-                    parent: x.parent,
-                    position: Point3::from(x.position),
-                    radius_m: x.radius,
-                })
-                .collect(),
-        )
+        Self::new(skeleton_nodes_from_json(text, path)?)
     }
 
     /// Read a skeleton JSON file.
@@ -395,4 +381,28 @@ impl Skeleton {
     pub fn write_json(&self, path: &Path) -> Result<()> {
         std::fs::write(path, self.to_json()?).map_err(|e| ColonizeError::io(path, e))
     }
+}
+
+/// The nodes of a skeleton JSON (`{"nodes": [{"id", "parent", "position": [x, y, z],
+/// "radius"}]}`, unknown fields refused), not yet checked as a tree: the one reader of the
+/// format, for [`Skeleton::from_json`] and for crates that check skeletons with rules and
+/// errors of their own (beam-anim). `path` only names the text in errors.
+///
+/// # Errors
+/// [`ColonizeError::Format`] for JSON that does not match the format.
+pub fn skeleton_nodes_from_json(text: &str, path: &Path) -> Result<Vec<SkeletonNode>> {
+    let doc: JsonSkeleton = serde_json::from_str(text).map_err(|e| ColonizeError::Format {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })?;
+    Ok(doc
+        .nodes
+        .into_iter()
+        .map(|x| SkeletonNode {
+            id: x.id,
+            parent: x.parent,
+            position: Point3::from(x.position),
+            radius_m: x.radius,
+        })
+        .collect())
 }

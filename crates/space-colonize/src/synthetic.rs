@@ -9,6 +9,8 @@
 use kiddo::SquaredEuclidean;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use nalgebra::{Point3, Vector3};
+use rand_xoshiro::SplitMix64;
+use rand_xoshiro::rand_core::{RngCore, SeedableRng};
 use serde::Serialize;
 
 use crate::error::{ColonizeError, Result};
@@ -71,16 +73,13 @@ pub struct SyntheticTree {
     pub points: Vec<Point3<f64>>,
 }
 
-/// SplitMix64 (Steele, Lea, Flood 2014): small, seedable, good enough for test data.
-struct Rng(u64);
+/// SplitMix64 (Steele, Lea, Flood 2014; `rand_xoshiro`'s, the workspace's one generator):
+/// small, seedable, good enough for test data.
+struct Rng(SplitMix64);
 
 impl Rng {
     fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
@@ -132,7 +131,7 @@ impl SyntheticConfig {
                 format!("{}; must be zero or positive", self.noise_m),
             ));
         }
-        let mut rng = Rng(self.seed);
+        let mut rng = Rng(SplitMix64::seed_from_u64(self.seed));
         let mut positions: Vec<Point3<f64>> = vec![Point3::origin()];
         let mut parents: Vec<Option<usize>> = vec![None];
         // (start node, direction, length, order)

@@ -11,7 +11,7 @@ use proptest::prelude::*;
 
 fn tree() -> BeamTree {
     let sk = procedural_tree(13, 5).unwrap();
-    BeamTree::new(&sk, GREEN_WOOD_DENSITY_KG_M3, &Vector3::x()).unwrap()
+    BeamTree::with_density(&sk, GREEN_WOOD_DENSITY_KG_M3, &Vector3::x()).unwrap()
 }
 
 fn spec(json: &str) -> beam_anim::Result<DynamicsSpec> {

@@ -26,7 +26,7 @@ fn chain(n: usize) -> Vec<SkeletonNode> {
 fn sim(dynamics: Dynamics, dt_s: f64) -> beam_anim::Result<Simulation> {
     let sk = validate_nodes(&chain(6))?;
     let config = AnimConfig::default();
-    let tree = BeamTree::new(&sk, config.wood_density_kg_m3, &config.wind.direction)?;
+    let tree = BeamTree::new(&sk, &config)?;
     let d = vec![dynamics; tree.branches().len()];
     Simulation::new(tree, &d, config, dt_s)
 }
@@ -133,7 +133,7 @@ proptest! {
             .collect();
         if let Ok(sk) = validate_nodes(&nodes) {
             let config = AnimConfig::default();
-            if let Ok(tree) = BeamTree::new(&sk, config.wood_density_kg_m3, &config.wind.direction) {
+            if let Ok(tree) = BeamTree::new(&sk, &config) {
                 let d = vec![PAPER_DYNAMICS; tree.branches().len()];
                 let mut s = Simulation::new(tree, &d, config, 1.0 / 30.0).unwrap();
                 let mut w = s.wind_field().unwrap();

@@ -15,7 +15,7 @@ fn run(frames: usize) -> (Simulation, Vec<Pose>) {
     let sk = procedural_tree(13, 5).unwrap();
     let mut config = AnimConfig::default();
     config.wind.mean_speed_m_s = 15.0;
-    let tree = BeamTree::new(&sk, config.wood_density_kg_m3, &config.wind.direction).unwrap();
+    let tree = BeamTree::new(&sk, &config).unwrap();
     let d = vec![PAPER_DYNAMICS; tree.branches().len()];
     let mut sim = Simulation::new(tree, &d, config, 1.0 / 30.0).unwrap();
     let mut wind = sim.wind_field().unwrap();

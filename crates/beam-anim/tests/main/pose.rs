@@ -7,7 +7,7 @@ fn segment_frames_keep_segments_rigid_and_children_attached() {
     let sk = procedural_tree(40, 3).unwrap();
     let mut config = AnimConfig::default();
     config.wind.mean_speed_m_s = 20.0;
-    let tree = BeamTree::new(&sk, config.wood_density_kg_m3, &config.wind.direction).unwrap();
+    let tree = BeamTree::new(&sk, &config).unwrap();
     let rest = tree.clone();
     let dynamics = vec![PAPER_DYNAMICS; tree.branches().len()];
     let mut sim = Simulation::new(tree, &dynamics, config, 1.0 / 30.0).unwrap();

@@ -22,7 +22,7 @@ fn release(integrator: Integrator, fps: f64, frames: usize) -> (Vec<f64>, f64, D
         integrator,
         ..AnimConfig::default()
     };
-    let tree = BeamTree::new(&sk, config.wood_density_kg_m3, &config.wind.direction).unwrap();
+    let tree = BeamTree::new(&sk, &config).unwrap();
     let d = Dynamics {
         frequency_hz: 1.46,
         damping_ratio: 0.086,

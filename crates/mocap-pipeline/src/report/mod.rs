@@ -2,6 +2,7 @@
 //! animation summaries (`report.json`), the Markdown report, the figures, and the products
 //! themselves (skeleton, animation, first projection image).
 
+mod annotate;
 mod figures;
 mod table;
 
@@ -13,7 +14,8 @@ use image::RgbImage;
 use serde::Serialize;
 use space_colonize::Skeleton;
 
-pub use figures::{series_svg, spectrum_svg};
+pub use annotate::annotate;
+pub use figures::{series_svg, spectrum_svg, swing_svg};
 pub use table::{BranchRow, table};
 
 use crate::analysis::BranchResult;
@@ -133,7 +135,8 @@ pub struct Products {
     pub skeleton: Skeleton,
     /// The wind animation.
     pub animation: Animation,
-    /// The first frame's projection image, the markers' windows named on it.
+    /// The first frame's projection image with each marker's first window outlined and
+    /// named.
     pub projection: RgbImage,
 }
 
@@ -195,7 +198,7 @@ impl Report {
         }
         let _ = writeln!(
             md,
-            ". Animation: {} frames in {} m/s wind, {} branches with measured dynamics. Whole run: {:.1} s.\n\nFigures: `figures/branch_<id>.angle.svg`, `figures/branch_<id>.spectrum.svg`.",
+            ". Animation: {} frames in {} m/s wind, {} branches with measured dynamics. Whole run: {:.1} s.\n\nFigures: `figures/branch_<id>.angle.svg` (the relative angle, the paper's signal), `figures/branch_<id>.swing.svg` (the signal ours is fitted on), `figures/branch_<id>.spectrum.svg` (its spectrum over the stretch the fit used); each marks the test window and that stretch.",
             self.animation.frames,
             self.animation.wind_speed_m_s,
             self.animation.measured_branches,
@@ -215,6 +218,7 @@ impl Report {
         for (b, row) in self.products.branch_results.iter().zip(&self.branches) {
             let base = figures.join(format!("branch_{}", b.id));
             write_atomic(&base.with_extension("angle.svg"), series_svg(b).as_bytes())?;
+            write_atomic(&base.with_extension("swing.svg"), swing_svg(b).as_bytes())?;
             write_atomic(
                 &base.with_extension("spectrum.svg"),
                 spectrum_svg(b, row.true_frequency_hz).as_bytes(),

@@ -362,7 +362,7 @@ impl Twin {
             ));
         }
         let skeleton = tree(config.seed)?;
-        let beam = BeamTree::new(&skeleton, GREEN_WOOD_DENSITY_KG_M3, &Vector3::x())
+        let beam = BeamTree::with_density(&skeleton, GREEN_WOOD_DENSITY_KG_M3, &Vector3::x())
             .map_err(|e| format!("twin beams: {e}"))?;
         let branches = beam.branches();
         let dynamics: Vec<Dynamics> = branches
