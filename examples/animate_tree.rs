@@ -219,6 +219,7 @@ fn main() -> std::process::ExitCode {
     common::run("animate_tree", || run_main(&args))
 }
 
+#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let (name, skeleton) = match &args.skeleton {
         Some(p) => (

@@ -227,6 +227,7 @@ fn mean_direction(vectors: &[Option<Vector3<f64>>], idx: &[usize]) -> Option<Vec
 /// without a trajectory; [`AngleError::NotInHierarchy`] for a trajectory the hierarchy does
 /// not name; [`AngleError::InvalidParameter`] when a rest interval holds no known
 /// sample of a branch or marker.
+#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 pub fn branch_angles(
     hierarchy: &Hierarchy,
     trajectories: &Trajectories,

@@ -129,6 +129,34 @@ impl Hierarchy {
         serde_json::to_string_pretty(&file).unwrap_or_default()
     }
 
+    /// The hierarchy of the markers of `nodes` that are `present` (tracked, say), leaving out
+    /// also every marker whose parent in `nodes` is not kept (its branch has no angle), in
+    /// the order given, with what was left out and why.
+    ///
+    /// # Errors
+    /// As [`Hierarchy::new`] on the kept markers (for instance [`AngleError::NoRoot`] when
+    /// the root is not present).
+    pub fn of_present(nodes: &[MarkerNode], present: &[String]) -> Result<Pruned> {
+        let mut kept: Vec<&MarkerNode> = nodes.iter().filter(|m| present.contains(&m.id)).collect();
+        let mut orphans = Vec::new();
+        // Each pass removes one orphan; at most one pass per marker.
+        for _ in 0..nodes.len() {
+            let ids: Vec<&str> = kept.iter().map(|m| m.id.as_str()).collect();
+            let orphan = kept.iter().position(|m| {
+                m.parent
+                    .as_deref()
+                    .is_some_and(|p| !ids.contains(&p) && nodes.iter().any(|q| q.id == p))
+            });
+            let Some(i) = orphan else { break };
+            let m = kept.remove(i);
+            orphans.push((m.id.clone(), m.parent.clone().unwrap_or_default()));
+        }
+        Ok(Pruned {
+            hierarchy: Self::new(kept.into_iter().cloned().collect())?,
+            orphans,
+        })
+    }
+
     /// The markers, in the order given.
     pub fn markers(&self) -> &[MarkerNode] {
         &self.nodes
@@ -198,6 +226,16 @@ pub struct Branch<'a> {
     pub parent: &'a str,
     /// The parent's parent, start of the parent branch.
     pub grandparent: Option<&'a str>,
+}
+
+/// A hierarchy of the markers present, and the markers left out because their parent was
+/// not (see [`Hierarchy::of_present`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pruned {
+    /// The kept markers' hierarchy.
+    pub hierarchy: Hierarchy,
+    /// `(marker, its missing parent)`, in the order they were left out.
+    pub orphans: Vec<(String, String)>,
 }
 
 #[cfg(test)]

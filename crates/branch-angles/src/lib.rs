@@ -17,6 +17,11 @@
 //!   frame carried by the parent and referenced to the rest pose (the unsigned angle folds a
 //!   swing through the rest direction and doubles its apparent frequency); each marker's
 //!   absolute displacement. [`AngleConfig::paper`] is eq. (1) alone, without gap filling.
+//! - [`drop_jumps`] takes out lifts that landed on another surface for a frame;
+//!   [`relative_swing`] gives a child's swing as one coordinate (its displacement from its
+//!   parent's marker along the direction it moves most), the signal modal fits need when a
+//!   twig swings along its chord; [`Hierarchy::of_present`] keeps the markers whose parents
+//!   are present.
 //! - [`csv`]: trajectories (`t,id,x,y,z`) and angle tables (`t,<branch>...`, degrees).
 //!
 //! Units: metres, seconds, radians (degrees only in angle CSV files). Frames: any right-handed
@@ -41,13 +46,15 @@ mod angles;
 pub mod csv;
 mod error;
 mod hierarchy;
+mod motion;
 mod series;
 pub mod synthetic;
 mod trajectory;
 
 pub use angles::{AngleConfig, AngleSet, BranchAngles, RestPose, SignedAngles, branch_angles};
 pub use error::{AngleError, Result};
-pub use hierarchy::{Branch, Hierarchy, MarkerNode};
+pub use hierarchy::{Branch, Hierarchy, MarkerNode, Pruned};
+pub use motion::{DEFAULT_JUMP_M, drop_jumps, relative_swing};
 pub use series::Series;
 pub use trajectory::{
     Filled, Gap, GapConfig, Interpolation, MAX_COORDINATE_M, MarkerTrack, Trajectories,

@@ -119,6 +119,7 @@ pub fn two_level() -> SyntheticTree {
 /// As [`Hierarchy::new`] and [`Trajectories::new`]; [`AngleError::InvalidParameter`] for a
 /// length that is not positive or a tilt of 90 degrees or more (a swing would pass the
 /// singular direction).
+#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 pub fn generate(specs: &[BranchSpec], times_s: &[f64], release_s: f64) -> Result<SyntheticTree> {
     let mut nodes = vec![MarkerNode {
         id: "A".into(),

@@ -86,12 +86,12 @@ pub enum KinectError {
         what: String,
     },
     /// A parameter given in code is out of its valid range.
-    #[error("invalid {name}: {what}")]
+    #[error("invalid {name}: {reason}")]
     InvalidParameter {
         /// The parameter's name, as in the API.
         name: &'static str,
         /// Why it is invalid (with the value and its unit).
-        what: String,
+        reason: String,
     },
     /// A depth image holds no valid depth at all (all zero or out of range).
     #[error("{what}: no valid depth pixel (all zero, NaN or out of range)")]
@@ -149,10 +149,10 @@ impl KinectError {
         }
     }
 
-    pub(crate) fn param(name: &'static str, what: impl Into<String>) -> Self {
+    pub(crate) fn param(name: &'static str, reason: impl Into<String>) -> Self {
         Self::InvalidParameter {
             name,
-            what: what.into(),
+            reason: reason.into(),
         }
     }
 }

@@ -64,6 +64,7 @@ mod pointcloud;
 mod projection;
 mod recording;
 mod scalar;
+mod still;
 pub mod synth;
 mod zbuffer;
 
@@ -96,6 +97,7 @@ pub use recording::{
     CALIBRATION_FILE, ColorFormat, FRAMES_FILE, FRAMES_HEADER, Frame, FrameEntry, Layout,
     Recording, RecordingWriter, TUM_MAX_DIFFERENCE_S, associate,
 };
+pub use still::{STILL_SPREAD_M, StillCloud};
 
 /// The types most programs need, plus nalgebra's `Isometry3`, `Point2`, `Point3`.
 pub mod prelude {

@@ -72,6 +72,26 @@ pub struct LiftConfig {
     pub depth_tolerance_ratio: f64,
 }
 
+impl LiftConfig {
+    /// The default lift for a projection image drawn on `plane` from a cloud of
+    /// `depth_camera`: the radius grows with the plane's resolution over the depth camera's
+    /// (the default 2 px on the depth camera's own plane), so that the lift gathers about
+    /// the same depth pixels on any plane.
+    pub fn for_plane(plane: &CameraModel, depth_camera: &CameraModel) -> Self {
+        let ratio = plane.fx / depth_camera.fx;
+        let base = Self::default();
+        Self {
+            radius_px: base.radius_px
+                * if ratio.is_finite() {
+                    ratio.max(1.0)
+                } else {
+                    1.0
+                },
+            ..base
+        }
+    }
+}
+
 impl Default for LiftConfig {
     fn default() -> Self {
         Self {

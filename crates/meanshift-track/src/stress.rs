@@ -217,6 +217,7 @@ pub struct StressConfig {
 
 impl StressConfig {
     /// The preset of `condition`.
+    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
     pub fn condition(condition: Condition, seed: u64) -> Self {
         let base = Self {
             width: 512,
@@ -378,6 +379,7 @@ impl StressConfig {
     ///
     /// # Errors
     /// [`TrackError::InvalidParameter`] naming the field.
+    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
     pub fn validate(&self) -> Result<()> {
         if !(64..=MAX_SIDE_PX).contains(&self.width) || !(64..=MAX_SIDE_PX).contains(&self.height) {
             return Err(TrackError::param(
@@ -1057,6 +1059,7 @@ fn finish(canvas: &Canvas, cfg: &StressConfig, frame: usize, rng: &mut Rng) -> R
 
 /// Place the markers: paths apart from each other, inside the frame (but for re-entries),
 /// crossing pairs on purpose.
+#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 fn place_markers(cfg: &StressConfig, rng: &mut Rng) -> Vec<StressMarker> {
     let (w, h) = (f64::from(cfg.width), f64::from(cfg.height));
     let mut out: Vec<StressMarker> = Vec::with_capacity(cfg.markers);

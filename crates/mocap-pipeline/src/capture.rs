@@ -11,10 +11,10 @@ use std::sync::mpsc;
 use image::RgbImage;
 use kinect_io::{
     Calibration, CameraModel, CloudBuilder, CloudConfig, DepthImage, LiftConfig, ProjectionConfig,
-    ProjectionImage, TexturedCloud, project_cloud,
+    ProjectionImage, StillCloud, TexturedCloud, project_cloud,
 };
 use meanshift_track::{MarkerInit, PixelRect, Tracker, TrackerConfig};
-use nalgebra::{Isometry3, Point2, Point3, Vector3};
+use nalgebra::{Isometry3, Point2, Point3};
 
 use crate::error::{PipelineError, Result};
 
@@ -181,15 +181,9 @@ fn consume(
         produce_s: 0.0,
         track_s: 0.0,
     };
-    // The lift gathers about the same depth pixels on any plane: its radius grows with the
-    // plane's resolution over the depth camera's (2 px on the depth camera's own plane).
-    let lift = LiftConfig {
-        radius_px: LiftConfig::default().radius_px
-            * (setup.plane.fx / setup.calibration.depth_camera.fx).max(1.0),
-        ..LiftConfig::default()
-    };
+    let lift = LiftConfig::for_plane(&setup.plane, &setup.calibration.depth_camera);
     let mut scratch = Vec::new();
-    let mut sums: Vec<Still> = Vec::new();
+    let mut still = StillCloud::new();
     let mut k = 0;
     while k < frames {
         let item = match pending.remove(&k) {
@@ -239,17 +233,11 @@ fn consume(
                 .push(center.and_then(|c| projection.lift_with(&cloud, &c, &lift, &mut scratch)));
         }
         if k < setup.static_frames {
-            if sums.is_empty() {
-                sums = vec![Still::default(); cloud.source_camera().pixel_count()];
-            }
-            for (i, p) in cloud.iter_valid() {
-                if let Some(s) = sums.get_mut(i) {
-                    s.add(&p.position_m);
-                }
-            }
+            still
+                .add(&cloud)
+                .map_err(|e| PipelineError::frame(k, "still cloud", e))?;
             if k + 1 == setup.static_frames.min(frames) {
-                let needed = (setup.static_frames as u32).div_ceil(2).max(1);
-                capture.static_points_m = sums.iter().filter_map(|s| s.point(needed)).collect();
+                capture.static_points_m = still.points();
             }
         }
         capture.times_s.push(time_s);
@@ -258,43 +246,6 @@ fn consume(
         progress(k, frames);
     }
     Ok(capture)
-}
-
-/// Spread (standard deviation of the distance from the camera) above which a pixel of the
-/// still frames is not one surface: a flying pixel mixing a branch with the background lands
-/// anywhere between them from frame to frame. Metres (about 5 sigma of the Kinect V2's noise
-/// at 2 m).
-const STILL_SPREAD_M: f64 = 0.01;
-
-/// One depth pixel over the still frames: sums of its positions and squared distances.
-#[derive(Debug, Clone, Copy, Default)]
-struct Still {
-    sum: Vector3<f64>,
-    sum_sq_m2: f64,
-    sum_r_m: f64,
-    count: u32,
-}
-
-impl Still {
-    fn add(&mut self, p: &Point3<f64>) {
-        let r = p.coords.norm();
-        self.sum += p.coords;
-        self.sum_r_m += r;
-        self.sum_sq_m2 += r * r;
-        self.count += 1;
-    }
-
-    /// The mean position when the pixel is valid in at least `needed` frames and steady (a
-    /// surface is seen in most still frames; a flying pixel or a dropout is not).
-    fn point(&self, needed: u32) -> Option<Point3<f64>> {
-        if self.count < needed {
-            return None;
-        }
-        let n = f64::from(self.count);
-        let mean_r = self.sum_r_m / n;
-        let var = (self.sum_sq_m2 / n - mean_r * mean_r).max(0.0);
-        (var.sqrt() <= STILL_SPREAD_M).then(|| Point3::from(self.sum / n))
-    }
 }
 
 /// The markers whose window lies on the first frame, and the others with the reason.

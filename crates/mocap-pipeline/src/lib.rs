@@ -47,17 +47,19 @@ pub mod capture;
 mod error;
 mod markers;
 mod pipeline;
+pub mod quality;
 pub mod report;
 mod stats;
 #[cfg(feature = "twin")]
 pub mod twin;
 
-pub use analysis::{BranchQuality, BranchResult};
+pub use analysis::BranchResult;
 pub use capture::{DroppedMarker, RawFrame};
 pub use error::{PipelineError, Result};
 pub use markers::{DEFAULT_CAMERA_HEIGHT_M, MIN_WINDOW_PX, MarkerEntry, MarkersFile};
 pub use pipeline::{
     MAX_ANIMATION_S, MAX_THREADS, Pipeline, PipelineConfig, Progress, ProgressFn, Stage,
 };
+pub use quality::BranchQuality;
 pub use report::{BranchRow, Report};
 pub use stats::median;

@@ -48,33 +48,31 @@ impl CsvLayout {
     /// Check that the layout says where time comes from exactly once.
     ///
     /// # Errors
-    /// [`ModalError::InvalidConfig`] naming the field.
+    /// [`ModalError::InvalidParameter`] naming the field.
     pub fn validate(&self) -> Result<()> {
         match (self.time_column, self.sample_rate_hz) {
-            (Some(_), Some(r)) => Err(ModalError::InvalidConfig {
+            (Some(_), Some(r)) => Err(ModalError::InvalidParameter {
                 name: "sample_rate_hz",
-                value: r,
-                expected: "absent when the file has a time column",
+                reason: format!("{r} (expected absent when the file has a time column)"),
             }),
-            (None, None) => Err(ModalError::InvalidConfig {
+            (None, None) => Err(ModalError::InvalidParameter {
                 name: "sample_rate_hz",
-                value: f64::NAN,
-                expected: "given when the file has no time column",
+                reason: "none given (expected given when the file has no time column)".to_string(),
             }),
-            (None, Some(r)) if !(r.is_finite() && r > 0.0) => Err(ModalError::InvalidConfig {
+            (None, Some(r)) if !(r.is_finite() && r > 0.0) => Err(ModalError::InvalidParameter {
                 name: "sample_rate_hz",
-                value: r,
-                expected: "positive and finite",
+                reason: format!("{r} (expected positive and finite)"),
             }),
-            (Some(t), _) if t == self.value_column => Err(ModalError::InvalidConfig {
+            (Some(t), _) if t == self.value_column => Err(ModalError::InvalidParameter {
                 name: "value_column",
-                value: self.value_column as f64,
-                expected: "different from the time column",
+                reason: format!(
+                    "{} (expected different from the time column)",
+                    self.value_column
+                ),
             }),
-            _ if self.value_column > MAX_COLUMN => Err(ModalError::InvalidConfig {
+            _ if self.value_column > MAX_COLUMN => Err(ModalError::InvalidParameter {
                 name: "value_column",
-                value: self.value_column as f64,
-                expected: "at most 65536",
+                reason: format!("{} (expected at most 65536)", self.value_column),
             }),
             _ => Ok(()),
         }
@@ -118,7 +116,7 @@ pub fn parse_signal_csv(text: &str) -> Result<Signal> {
 /// layout uses; every row must hold the same number.
 ///
 /// # Errors
-/// [`ModalError::InvalidConfig`] for a layout that does not validate; [`ModalError::Csv`]
+/// [`ModalError::InvalidParameter`] for a layout that does not validate; [`ModalError::Csv`]
 /// with the line number for a row with too few or a changing number of fields, a field
 /// that is not a number, or a NaN or infinite number; the errors of [`Signal::new`].
 pub fn parse_signal_csv_with(text: &str, layout: &CsvLayout) -> Result<Signal> {
@@ -283,7 +281,7 @@ mod tests {
         };
         assert!(matches!(
             parse_signal_csv_with("0,1\n", &bad),
-            Err(ModalError::InvalidConfig { .. })
+            Err(ModalError::InvalidParameter { .. })
         ));
     }
 

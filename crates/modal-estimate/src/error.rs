@@ -97,14 +97,12 @@ pub enum ModalError {
         nyquist_hz: f64,
     },
     /// A configuration value out of its range.
-    #[error("configuration {name} = {value} is out of range: {expected}")]
-    InvalidConfig {
+    #[error("invalid {name}: {reason}")]
+    InvalidParameter {
         /// The field.
         name: &'static str,
-        /// Its value.
-        value: f64,
-        /// What it must be.
-        expected: &'static str,
+        /// Its value and what it must be.
+        reason: String,
     },
     /// No spectral peak in the band (the signal has no oscillation there).
     #[error("no spectral peak between {low_hz} and {high_hz} Hz")]

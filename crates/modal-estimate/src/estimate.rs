@@ -152,30 +152,27 @@ impl EstimateConfig {
     /// Check ranges.
     ///
     /// # Errors
-    /// [`ModalError::InvalidConfig`] or [`ModalError::InvalidBand`].
+    /// [`ModalError::InvalidParameter`] or [`ModalError::InvalidBand`].
     pub fn validate(&self) -> Result<()> {
         self.segment.validate()?;
         if let Some(k) = self.modes
             && !(1..=8).contains(&k)
         {
-            return Err(ModalError::InvalidConfig {
+            return Err(ModalError::InvalidParameter {
                 name: "modes",
-                value: k as f64,
-                expected: "1 to 8",
+                reason: format!("{k} (expected 1 to 8)"),
             });
         }
         if !(1..=8).contains(&self.max_modes) {
-            return Err(ModalError::InvalidConfig {
+            return Err(ModalError::InvalidParameter {
                 name: "max_modes",
-                value: self.max_modes as f64,
-                expected: "1 to 8",
+                reason: format!("{} (expected 1 to 8)", self.max_modes),
             });
         }
         if !(self.max_damping_cov.is_finite() && self.max_damping_cov > 0.0) {
-            return Err(ModalError::InvalidConfig {
+            return Err(ModalError::InvalidParameter {
                 name: "max_damping_cov",
-                value: self.max_damping_cov,
-                expected: "positive and finite",
+                reason: format!("{} (expected positive and finite)", self.max_damping_cov),
             });
         }
         if let Some((low_hz, high_hz)) = self.band_hz
@@ -343,6 +340,34 @@ pub struct Estimate {
     pub warnings: Vec<Warning>,
 }
 
+/// A mode within this relative distance of an excluded frequency is that frequency's mode
+/// (4 %: the spread of one mode's estimates across a tree's levels in the paper's Table 1).
+pub const OWN_MODE_TOLERANCE: f64 = 0.04;
+
+/// Fewest cycles a mode must complete in the fitted segment to be a swing rather than the
+/// fit's stand-in for a slow trend.
+pub const MIN_SWING_CYCLES: f64 = 2.0;
+
+impl Estimate {
+    /// The strongest mode that is a swing (at least [`MIN_SWING_CYCLES`] cycles in the fitted
+    /// segment) and none of `excluded_hz` (within [`OWN_MODE_TOLERANCE`]): a branch's own
+    /// mode when its relative angle also carries its ancestors' swings (the paper's Fig. 12:
+    /// higher levels show more modes, the stem's among them). Modes are in the estimate's
+    /// order (largest amplitude first).
+    pub fn own_mode(&self, excluded_hz: &[f64]) -> Option<Mode> {
+        let span_s = self.segment.map_or(f64::INFINITY, |s| s.end_s - s.start_s);
+        self.modes
+            .iter()
+            .find(|m| {
+                m.frequency_hz * span_s >= MIN_SWING_CYCLES
+                    && !excluded_hz
+                        .iter()
+                        .any(|f| (m.frequency_hz - f).abs() <= OWN_MODE_TOLERANCE * f)
+            })
+            .copied()
+    }
+}
+
 /// The band searched: configured or from 1.5 cycles per record to Nyquist.
 fn search_band(signal: &Signal, config: &EstimateConfig) -> Result<(f64, f64)> {
     let nyquist_hz = signal.nyquist_hz().ok_or(ModalError::TooFewSamples {
@@ -481,6 +506,7 @@ fn median_in_place(v: &mut [f64]) -> f64 {
     *m
 }
 
+#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 fn estimate_normalised(signal: &Signal, config: &EstimateConfig) -> Result<Estimate> {
     let (low_hz, high_hz) = search_band(signal, config)?;
     let uniform = signal.resample_uniform(None)?;

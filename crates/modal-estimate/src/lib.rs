@@ -69,7 +69,10 @@ pub use ambient::{
     RandomDecrement, au_cycles_needed, au_uncertainty, band_pass, random_decrement, welch,
 };
 pub use error::{ModalError, Result};
-pub use estimate::{Estimate, EstimateConfig, Estimator, Method, Warning, estimate};
+pub use estimate::{
+    Estimate, EstimateConfig, Estimator, MIN_SWING_CYCLES, Method, OWN_MODE_TOLERANCE, Warning,
+    estimate,
+};
 pub use fit::{Mode, cramer_rao_bound};
 pub use paper::{HalfPower, half_power, paper_half_power};
 pub use segment::{Release, Segment, SegmentConfig};

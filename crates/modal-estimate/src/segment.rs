@@ -51,7 +51,7 @@ impl SegmentConfig {
     /// Check ranges.
     ///
     /// # Errors
-    /// [`ModalError::InvalidConfig`] for a negative or non-finite number.
+    /// [`ModalError::InvalidParameter`] for a negative or non-finite number.
     pub fn validate(&self) -> Result<()> {
         let checks = [
             ("segment.skip_cycles", self.skip_cycles),
@@ -63,10 +63,9 @@ impl SegmentConfig {
         ];
         for (name, value) in checks {
             if !(value.is_finite() && value >= 0.0) {
-                return Err(ModalError::InvalidConfig {
+                return Err(ModalError::InvalidParameter {
                     name,
-                    value,
-                    expected: "finite and not negative",
+                    reason: format!("{value} (expected finite and not negative)"),
                 });
             }
         }

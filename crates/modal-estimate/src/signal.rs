@@ -88,14 +88,13 @@ impl Signal {
     /// Samples at a constant rate starting at t = 0.
     ///
     /// # Errors
-    /// [`ModalError::InvalidConfig`] for a rate that is not positive and finite; the errors
+    /// [`ModalError::InvalidParameter`] for a rate that is not positive and finite; the errors
     /// of [`Signal::new`].
     pub fn uniform(sample_rate_hz: f64, values: Vec<Option<f64>>) -> Result<Self> {
         if !(sample_rate_hz.is_finite() && sample_rate_hz > 0.0) {
-            return Err(ModalError::InvalidConfig {
+            return Err(ModalError::InvalidParameter {
                 name: "sample_rate_hz",
-                value: sample_rate_hz,
-                expected: "positive and finite",
+                reason: format!("{sample_rate_hz} (expected positive and finite)"),
             });
         }
         let times_s = (0..values.len())
@@ -239,7 +238,7 @@ impl Signal {
     /// present samples on either side of each grid point.
     ///
     /// # Errors
-    /// [`ModalError::TooFewSamples`] below two present samples; [`ModalError::InvalidConfig`]
+    /// [`ModalError::TooFewSamples`] below two present samples; [`ModalError::InvalidParameter`]
     /// for an interval that is not positive and finite; [`ModalError::TooLarge`] when the
     /// grid would hold more than 64 samples per present one or 2^26 in all.
     pub fn resample_uniform(&self, interval_s: Option<f64>) -> Result<UniformSignal> {
@@ -254,10 +253,12 @@ impl Signal {
         let interval_s = match interval_s.or_else(|| self.median_interval_s()) {
             Some(dt) if dt.is_finite() && dt > 0.0 => dt,
             other => {
-                return Err(ModalError::InvalidConfig {
+                return Err(ModalError::InvalidParameter {
                     name: "interval_s",
-                    value: other.unwrap_or(f64::NAN),
-                    expected: "positive and finite",
+                    reason: format!(
+                        "{} (expected positive and finite)",
+                        other.unwrap_or(f64::NAN)
+                    ),
                 });
             }
         };

@@ -126,13 +126,12 @@ impl SpectrumConfig {
     /// Check ranges.
     ///
     /// # Errors
-    /// [`ModalError::InvalidConfig`] when `zero_padding` is 0 or above 64.
+    /// [`ModalError::InvalidParameter`] when `zero_padding` is 0 or above 64.
     pub fn validate(&self) -> Result<()> {
         if !(1..=64).contains(&self.zero_padding) {
-            return Err(ModalError::InvalidConfig {
+            return Err(ModalError::InvalidParameter {
                 name: "zero_padding",
-                value: self.zero_padding as f64,
-                expected: "1 to 64",
+                reason: format!("{} (expected 1 to 64)", self.zero_padding),
             });
         }
         Ok(())
@@ -183,7 +182,7 @@ pub struct Peak {
 ///
 /// # Errors
 /// [`ModalError::TooFewSamples`] below 4 present samples, [`ModalError::Constant`],
-/// [`ModalError::AllMissing`], [`ModalError::InvalidConfig`].
+/// [`ModalError::AllMissing`], [`ModalError::InvalidParameter`].
 pub fn spectrum(signal: &Signal, config: &SpectrumConfig) -> Result<Spectrum> {
     config.validate()?;
     signal.check_usable("a spectrum", 4)?;

@@ -198,7 +198,7 @@ impl DecaySpec {
     /// Generate the record.
     ///
     /// # Errors
-    /// [`ModalError::TooLarge`] above [`MAX_SYNTHETIC_SAMPLES`], [`ModalError::InvalidConfig`]
+    /// [`ModalError::TooLarge`] above [`MAX_SYNTHETIC_SAMPLES`], [`ModalError::InvalidParameter`]
     /// for a rate that is not positive and finite (both before allocating); the errors of
     /// [`Signal::new`] (for a jitter of half an interval or more, which breaks the order).
     pub fn generate(&self) -> Result<Signal> {
@@ -258,7 +258,7 @@ fn mode_at(f: f64, xi: f64, d: f64, tau: f64, t_ref: f64) -> Mode {
 /// variance. Integrated exactly per sample for a force held over the step.
 ///
 /// # Errors
-/// [`ModalError::InvalidConfig`] for parameters out of range, [`ModalError::TooLarge`] above
+/// [`ModalError::InvalidParameter`] for parameters out of range, [`ModalError::TooLarge`] above
 /// [`MAX_SYNTHETIC_SAMPLES`] (before allocating); the errors of [`Signal::uniform`].
 pub fn ambient(
     frequency_hz: f64,
@@ -275,10 +275,11 @@ pub fn ambient(
         && duration_s > 0.0
         && snr_db.is_finite())
     {
-        return Err(ModalError::InvalidConfig {
+        return Err(ModalError::InvalidParameter {
             name: "ambient",
-            value: frequency_hz,
-            expected: "a positive frequency, a damping ratio in [0, 1), a positive duration and a finite SNR",
+            reason: format!(
+                "frequency {frequency_hz} Hz, damping ratio {damping_ratio}, duration {duration_s} s, SNR {snr_db} dB (expected a positive frequency, a damping ratio in [0, 1), a positive duration and a finite SNR)"
+            ),
         });
     }
     check_size((duration_s * sample_rate_hz).round(), sample_rate_hz)?;
@@ -324,10 +325,9 @@ pub const MAX_SYNTHETIC_SAMPLES: usize = 1 << 26;
 /// A record of `samples` at `sample_rate_hz`, checked before anything is allocated.
 fn check_size(samples: f64, sample_rate_hz: f64) -> Result<()> {
     if !(sample_rate_hz.is_finite() && sample_rate_hz > 0.0) {
-        return Err(ModalError::InvalidConfig {
+        return Err(ModalError::InvalidParameter {
             name: "sample_rate_hz",
-            value: sample_rate_hz,
-            expected: "positive and finite",
+            reason: format!("{sample_rate_hz} (expected positive and finite)"),
         });
     }
     if samples.is_nan() || samples > MAX_SYNTHETIC_SAMPLES as f64 {

@@ -4,7 +4,8 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use crate::analysis::{BranchQuality, BranchResult};
+use crate::analysis::BranchResult;
+use crate::quality::BranchQuality;
 
 /// One row of the report's `branches`.
 #[derive(Debug, Clone, Serialize)]

@@ -8,15 +8,15 @@
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
-use beam_anim::{AnimConfig, BeamTree, Dynamics, GREEN_WOOD_DENSITY_KG_M3, SEGMENTS, Simulation};
-use kinect_io::synth::{
-    MARKER_RGB, Marker, Primitive, Renderer, Scene, SensorNoise, Shape, SynthConfig,
-};
+use beam_anim::{AnimConfig, BeamTree, Dynamics, Simulation};
+use kinect_io::synth::{MARKER_RGB, Marker, Primitive, Renderer, Scene, Shape, SynthConfig};
 use nalgebra::{Point2, Point3, UnitQuaternion, Vector3};
 use space_colonize::{Skeleton, SkeletonNode};
 
 use crate::capture::RawFrame;
+use build::{Parts, check};
 
+mod build;
 mod run;
 use crate::error::{PipelineError, Result};
 pub use run::{TRACK_TOLERANCE_PX, TWIN_JPEG_QUALITY};
@@ -338,329 +338,29 @@ impl Twin {
     }
 
     fn build_inner(config: &TwinConfig) -> Result<Self, String> {
-        let checks = [
-            ("fps_hz", config.fps_hz, 5.0, 240.0),
-            ("decay_s[0]", config.decay_s[0], 1.0, 120.0),
-            ("decay_s[1]", config.decay_s[1], 1.0, 120.0),
-            ("decay_s[2]", config.decay_s[2], 1.0, 120.0),
-            ("distance_m", config.distance_m, 1.0, 4.0),
-            ("camera_height_m", config.camera_height_m, 0.2, 2.0),
-            ("marker_radius_m", config.marker_radius_m, 0.003, 0.05),
-            ("noise_scale", config.noise_scale, 0.0, 10.0),
-            ("window_error_px", config.window_error_px, 0.0, 20.0),
-            ("color_scale", config.color_scale, 0.1, 1.0),
-        ];
-        for (name, v, lo, hi) in checks {
-            if !(v.is_finite() && (lo..=hi).contains(&v)) {
-                return Err(format!("twin {name} = {v}: must lie in {lo}..={hi}"));
-            }
-        }
-        if !(1..=4).contains(&config.chains) {
-            return Err(format!(
-                "twin chains = {}: must lie in 1..=4",
-                config.chains
-            ));
-        }
-        let skeleton = tree(config.seed)?;
-        let beam = BeamTree::with_density(&skeleton, GREEN_WOOD_DENSITY_KG_M3, &Vector3::x())
-            .map_err(|e| format!("twin beams: {e}"))?;
-        let branches = beam.branches();
-        let dynamics: Vec<Dynamics> = branches
-            .iter()
-            .enumerate()
-            .map(|(i, b)| true_dynamics(b.order, config.seed, i as u64))
-            .collect();
-
-        let mut synth =
-            SynthConfig::kinect_v2(config.distance_m, config.camera_height_m, config.seed);
-        synth.calibration.color_camera = synth
-            .calibration
-            .color_camera
-            .scaled(config.color_scale)
-            .map_err(|e| format!("twin colour camera: {e}"))?;
-        let s = config.noise_scale;
-        let kinect = SensorNoise::kinect_v2();
-        synth.noise = SensorNoise {
-            depth_noise_scale: kinect.depth_noise_scale * s,
-            flying_pixel_probability: (kinect.flying_pixel_probability * s).min(1.0),
-            dropout_probability: (kinect.dropout_probability * s).min(1.0),
-            color_noise_sigma: kinect.color_noise_sigma * s,
-            ..kinect
-        };
-        let camera_world = synth.world_to_depth.inverse() * Point3::origin();
-
-        // Every skeleton node rides on the beam segment that holds it: its branch's segment
-        // by arc length along the branch (nodes of a curved branch lie off the segment's
-        // chord; they move rigidly with it).
-        let mut node_segment = vec![0usize; skeleton.nodes().len()];
-        let mut node_arc = vec![0.0f64; skeleton.nodes().len()];
-        for sb in skeleton.branches() {
-            let i = beam
-                .index_of(sb.id)
-                .map_err(|e| format!("twin beams: {e}"))?;
-            let mut last = sb
-                .base_node
-                .map_or(skeleton.nodes()[sb.nodes[0]].position, |n| {
-                    skeleton.nodes()[n].position
-                });
-            let mut arc = 0.0;
-            for &n in &sb.nodes {
-                let p = skeleton.nodes()[n].position;
-                arc += (p - last).norm();
-                last = p;
-                node_arc[n] = arc;
-            }
-            for &n in &sb.nodes {
-                let frac = node_arc[n] / arc.max(1e-12);
-                // A node at a segment's end belongs to that segment (its edge lies in it).
-                let s =
-                    ((frac * SEGMENTS as f64 - 1e-9).floor().max(0.0) as usize).min(SEGMENTS - 1);
-                node_segment[n] = i * SEGMENTS + s;
-            }
-        }
-        // A marker sits on the camera side of its branch 80 % along (the trunk's at 0.4 m):
-        // far enough out to swing, and its parent-to-child chord long beside the noise.
-        let nodes = skeleton.nodes();
-        let sk_branches = skeleton.branches();
-        let marker_at = |branch: usize| -> Result<Place, String> {
-            let chain = &sk_branches
-                .iter()
-                .find(|sb| sb.id == branches[branch].id)
-                .ok_or("twin: a beam without its skeleton branch")?
-                .nodes;
-            let total = chain.last().map_or(0.0, |&n| node_arc[n]);
-            let along = |n: usize| {
-                if branch == 0 {
-                    (nodes[n].position.z - ROOT_MARKER_HEIGHT_M).abs()
-                } else {
-                    (node_arc[n] - MARKER_ALONG * total).abs()
-                }
-            };
-            let node = *chain
-                .iter()
-                .min_by(|&&a, &&b| along(a).total_cmp(&along(b)))
-                .ok_or("twin: empty branch")?;
-            let p = nodes[node].position;
-            let axis = match nodes[node].parent {
-                Some(q) => (p - nodes[q].position).normalize(),
-                None => Vector3::z(),
-            };
-            let toward = camera_world - p;
-            let n = (toward - axis * axis.dot(&toward)).normalize();
-            // Clear the edges meeting at the node (the thicker one is the parent's side).
-            let r = nodes[node]
-                .radius_m
-                .max(nodes[nodes[node].parent.unwrap_or(node)].radius_m);
-            let segment = node_segment[node];
-            let start = beam.segment_start(segment);
-            Ok((segment, p - start + n * (r + MARKER_STANDOFF_M), n))
-        };
-
+        check(config)?;
+        let parts = Parts::new(config)?;
         // Only the rest pose is read from the probe: a millisecond step is short enough for
         // any branch frequency (the simulation refuses one above its Nyquist frequency).
-        let mut probe = Simulation::new(beam.clone(), &dynamics, AnimConfig::default(), 1e-3)
-            .map_err(|e| format!("twin simulation: {e}"))?;
+        let mut probe = Simulation::new(
+            parts.beam.clone(),
+            &parts.dynamics,
+            AnimConfig::default(),
+            1e-3,
+        )
+        .map_err(|e| format!("twin simulation: {e}"))?;
         let rest = probe.segment_frames();
-        let at = |frames: &[(UnitQuaternion<f64>, Point3<f64>)], place: &Place| {
-            frames[place.0].1 + frames[place.0].0 * place.1
-        };
-        // Marked chains (a limb, one of its level-2 branches, one of that branch's twigs),
-        // chosen as a field crew would: markers well apart, swinging across the view.
-        let children = |p: usize| -> Vec<usize> {
-            (0..branches.len())
-                .filter(|&i| branches[i].parent == Some(p))
-                .collect()
-        };
-        let root_place = marker_at(0)?;
-        // The camera's viewing direction in the tree frame.
-        let view = synth.world_to_depth.inverse_transform_vector(&Vector3::z());
-        let mut candidates: Vec<(f64, [usize; 3])> = Vec::new();
-        for l1 in children(0) {
-            for l2 in children(l1) {
-                for l3 in children(l2) {
-                    let chain = [l1, l2, l3];
-                    let mut places = vec![root_place];
-                    for &b in &chain {
-                        places.push(marker_at(b)?);
-                    }
-                    // Shortest parent-to-child marker distance: a short one makes a noisy
-                    // angle, and markers side by side confuse trackers.
-                    let mut score = places
-                        .windows(2)
-                        .map(|w| (at(&rest, &w[1]) - at(&rest, &w[0])).norm())
-                        .fold(f64::INFINITY, f64::min);
-                    // A swing toward the camera shows only in the depth (the noisiest axis):
-                    // weigh by the share of each marker's swing across the view.
-                    for (k, &b) in chain.iter().enumerate() {
-                        let id = branches[b].id;
-                        probe
-                            .pull(id, PROBE_RAD)
-                            .map_err(|e| format!("twin pull: {e}"))?;
-                        let d =
-                            at(&probe.segment_frames(), &places[k + 1]) - at(&rest, &places[k + 1]);
-                        probe.pull(id, 0.0).map_err(|e| format!("twin pull: {e}"))?;
-                        let across = (d - view * view.dot(&d)).norm() / d.norm().max(1e-12);
-                        score *= across;
-                    }
-                    if score.is_finite() {
-                        candidates.push((score, chain));
-                    }
-                }
-            }
-        }
-        candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
-
-        // Markers apart on the image too (a tracker's window holds one marker): at least
-        // MIN_MARKER_GAP_PX depth pixels between any two.
-        let dcam = synth.calibration.depth_camera;
-        let pixel = |place: &Place| dcam.project(&(synth.world_to_depth * at(&rest, place)));
-        let mut taken: Vec<Point2<f64>> = pixel(&root_place).into_iter().collect();
-        let mut chains: Vec<[usize; 3]> = Vec::new();
-        for (_, chain) in &candidates {
-            if chains.len() >= config.chains || chains.iter().any(|c| c[0] == chain[0]) {
-                continue;
-            }
-            let mut px = Vec::new();
-            for &b in chain {
-                px.extend(pixel(&marker_at(b)?));
-            }
-            let apart = |a: &Point2<f64>, b: &Point2<f64>| (a - b).norm() >= MIN_MARKER_GAP_PX;
-            let clear = px.len() == chain.len()
-                && px.iter().all(|p| taken.iter().all(|q| apart(p, q)))
-                && px
-                    .iter()
-                    .enumerate()
-                    .all(|(i, p)| px[..i].iter().all(|q| apart(p, q)));
-            if clear {
-                taken.extend(px);
-                chains.push(*chain);
-            }
-        }
-        if chains.len() < config.chains {
-            return Err(format!(
-                "twin tree has {} limbs with a marked chain, {} asked for",
-                chains.len(),
-                config.chains
-            ));
-        }
-        // The pull of a marked branch: as far as makes its marker swing by the level's angle
-        // about its parent's marker (a crew pulls until the swing is plain to see).
-        let places_of = |chain: &[usize; 3], level: usize| -> Result<[Place; 2], String> {
-            let parent = if level == 0 {
-                root_place
-            } else {
-                marker_at(chain[level - 1])?
-            };
-            Ok([parent, marker_at(chain[level])?])
-        };
-        let mut swing_pull = |branch: usize, places: &[Place; 2]| -> Result<f64, String> {
-            let id = branches[branch].id;
-            probe
-                .pull(id, PROBE_RAD)
-                .map_err(|e| format!("twin pull: {e}"))?;
-            let moved = probe.segment_frames();
-            probe.pull(id, 0.0).map_err(|e| format!("twin pull: {e}"))?;
-            let parent = at(&rest, &places[0]);
-            let before = at(&rest, &places[1]) - parent;
-            let after = at(&moved, &places[1]) - parent;
-            let swing = before.cross(&after).norm().atan2(before.dot(&after));
-            if swing.is_nan() || swing <= 0.0 {
-                return Err(format!("twin branch {id} does not swing when pulled"));
-            }
-            Ok((PROBE_RAD * swing_target_rad(branches[branch].order) / swing).min(MAX_PULL_RAD))
-        };
-        let mut markers = Vec::new();
-        let (segment, offset_m, normal) = root_place;
-        markers.push(TwinMarker {
-            id: marker_name(0),
-            parent: None,
-            level: 0,
-            branch: 0,
-            segment,
-            offset_m,
-            normal,
-            truth: dynamics[0],
-            pull_rad: 0.0,
-            pull_s: (0.0, 0.0),
-            release_s: f64::INFINITY,
-            window_s: (0.0, 0.0),
-        });
-        for chain in &chains {
-            let mut parent = marker_name(0);
-            for (level, &branch) in chain.iter().enumerate() {
-                let id = marker_name(markers.len());
-                let (segment, offset_m, normal) = marker_at(branch)?;
-                markers.push(TwinMarker {
-                    id: id.clone(),
-                    parent: Some(parent),
-                    level: level + 1,
-                    branch,
-                    segment,
-                    offset_m,
-                    normal,
-                    truth: dynamics[branch],
-                    pull_rad: swing_pull(branch, &places_of(chain, level)?)?,
-                    pull_s: (0.0, 0.0),
-                    release_s: f64::INFINITY,
-                    window_s: (0.0, 0.0),
-                });
-                parent = id;
-            }
-        }
-
-        // Timeline: one pull-and-release test per level, twigs first (a branch's test ends
-        // before its parent's begins, so its relative angle holds its own swing): pull
-        // (smooth ramp), hold, release, free decay.
-        let mut t = STILL_S;
-        for level in (1..=3).rev() {
-            let (start, end) = (t, t + PULL_RAMP_S);
-            let release = end + HOLD_S;
-            let stop = release + config.decay_s[level - 1];
-            for m in markers.iter_mut().filter(|m| m.level == level) {
-                m.pull_s = (start, end);
-                m.release_s = release;
-                m.window_s = (end, stop);
-            }
-            t = stop;
-        }
-        let frames = (t * config.fps_hz).floor() as usize + 1;
-        let dt = 1.0 / config.fps_hz;
-        let times_s: Vec<f64> = (0..frames).map(|k| k as f64 * dt).collect();
-        let first_release = markers
-            .iter()
-            .filter(|m| m.level > 0)
-            .map(|m| m.release_s)
-            .fold(f64::INFINITY, f64::min);
-        let mut sim = Simulation::new(beam.clone(), &dynamics, AnimConfig::default(), dt)
-            .map_err(|e| format!("twin simulation: {e}"))?;
-        let mut scenes = Vec::with_capacity(frames);
-        for &t in &times_s {
-            if t >= first_release {
-                sim.step_free();
-            }
-            for m in markers.iter().filter(|m| m.level > 0 && t < m.release_s) {
-                let ramp = smoothstep((t - m.pull_s.0) / (m.pull_s.1 - m.pull_s.0));
-                sim.pull(branches[m.branch].id, m.pull_rad * ramp)
-                    .map_err(|e| format!("twin pull: {e}"))?;
-            }
-            scenes.push(scene(
-                &sim,
-                &beam,
-                &skeleton,
-                &node_segment,
-                &markers,
-                config,
-            ));
-        }
-        let release_s = first_release;
+        let chains = parts.choose_chains(&mut probe, &rest, config.chains)?;
+        let mut markers = parts.markers(&chains, &mut probe, &rest)?;
+        let (times_s, release_s, scenes) = parts.film(&mut markers, config)?;
         Ok(Self {
             config: config.clone(),
-            skeleton,
+            skeleton: parts.skeleton,
             markers,
             times_s,
             release_s,
             scenes,
-            synth,
+            synth: parts.synth,
         })
     }
 

@@ -1,0 +1,125 @@
+//! The stage programs chain as the README says: `branch_angles` writes `t,<branch>...`, and
+//! `estimate_modal --column <branch>` reads a branch's column of it by name; usage errors
+//! exit 2 and every program knows `--version`. Runs the example programs `cargo test`
+//! builds next to this test; skips with a message when they are not there.
+#![allow(missing_docs, clippy::expect_used, clippy::unwrap_used, clippy::panic)]
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use treemocap::branch_angles::csv::trajectories_to_csv;
+use treemocap::branch_angles::synthetic;
+
+const PROGRAMS: [&str; 7] = [
+    "pipeline",
+    "capture_to_cloud",
+    "track_markers",
+    "branch_angles",
+    "estimate_modal",
+    "reconstruct_tree",
+    "animate_tree",
+];
+
+fn program(name: &str) -> Option<PathBuf> {
+    let exe = std::env::current_exe().ok()?;
+    let path = exe
+        .parent()?
+        .parent()?
+        .join("examples")
+        .join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
+    path.exists().then_some(path)
+}
+
+#[test]
+fn branch_angles_output_feeds_estimate_modal_by_column_name() {
+    let (Some(angles), Some(modal)) = (program("branch_angles"), program("estimate_modal")) else {
+        eprintln!("skipped: the example programs are not built (run `cargo test --workspace`)");
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("treemocap-chain-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let tree = synthetic::two_level();
+    std::fs::write(
+        dir.join("trajectories.csv"),
+        trajectories_to_csv(&tree.trajectories),
+    )
+    .unwrap();
+    std::fs::write(dir.join("hierarchy.json"), tree.hierarchy.to_json()).unwrap();
+    let out = Command::new(&angles)
+        .arg(dir.join("trajectories.csv"))
+        .arg(dir.join("hierarchy.json"))
+        .arg("--out")
+        .arg(dir.join("angles.csv"))
+        // The signed tilts: the unsigned angle folds a swing through the rest direction
+        // and doubles its apparent frequency.
+        .arg("--signed")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for truth in &tree.truth {
+        let spread = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let column = if spread(&truth.u_rad) >= spread(&truth.w_rad) {
+            format!("{}_u", truth.child)
+        } else {
+            format!("{}_w", truth.child)
+        };
+        let out = Command::new(&modal)
+            .arg(dir.join("angles.csv"))
+            .args(["--column", &column])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            truth.child,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let f = json["modes"][0]["frequency_hz"].as_f64().unwrap();
+        assert!(
+            (f - truth.frequency_hz).abs() < 0.02 * truth.frequency_hz,
+            "{}: {f} Hz, true {} Hz",
+            truth.child,
+            truth.frequency_hz
+        );
+    }
+    // A name that is not a column is an error naming it.
+    let out = Command::new(&modal)
+        .arg(dir.join("angles.csv"))
+        .args(["--column", "nope"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("\"nope\""));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn every_program_knows_version_and_exits_2_on_a_usage_error() {
+    for name in PROGRAMS {
+        let Some(path) = program(name) else {
+            eprintln!("skipped: {name} is not built");
+            continue;
+        };
+        let out = Command::new(&path).arg("--version").output().unwrap();
+        assert!(out.status.success(), "{name} --version");
+        assert!(
+            String::from_utf8_lossy(&out.stdout).starts_with(name),
+            "{name}"
+        );
+        let out = Command::new(&path)
+            .arg("--no-such-option")
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{name}");
+        assert!(
+            String::from_utf8_lossy(&out.stderr).starts_with("error: "),
+            "{name}"
+        );
+    }
+}
