@@ -26,18 +26,18 @@
 mod assign;
 mod error;
 pub mod export;
+pub mod export_text;
 mod oscillator;
 mod procedural;
+mod rotation;
 mod sim;
 mod tree;
 pub mod wind;
 
 pub use assign::{Assignment, DynamicsSource, DynamicsSpec, MeasuredDynamics};
 pub use error::{AnimError, Result};
-pub use export::{
-    GlbOptions, MAX_GLTF_JOINTS, angles_csv, bvh_string, displacement_csv, glb_bytes, write_bvh,
-    write_glb,
-};
+pub use export::{GlbOptions, MAX_GLTF_JOINTS, glb_bytes, write_glb};
+pub use export_text::{angles_csv, bvh_string, displacement_csv, write_bvh};
 pub use oscillator::{
     Dynamics, EULER_TOLERANCE, Integrator, MAX_FREQUENCY_HZ, MAX_SUBSTEPS, PAPER_DYNAMICS,
     free_response, gain,

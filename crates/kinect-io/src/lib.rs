@@ -57,6 +57,7 @@ mod cloud;
 mod depth;
 mod error;
 mod freenect2;
+mod occlusion;
 mod opencv_yaml;
 mod pcd;
 mod ply;

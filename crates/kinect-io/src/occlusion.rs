@@ -1,0 +1,138 @@
+//! The occlusion filter's minimum-depth map over the colour image: which depth pixels the
+//! colour camera sees, found without clearing a full-size map every frame.
+
+use crate::zbuffer::DEPTH_BITS;
+
+/// A minimum-depth map over the colour image that needs no clearing between frames. A cell is
+/// `(age << 24) | depth` (depth quantised to 0.1 mm): cells from earlier frames have a larger
+/// age, so one unsigned `min` both replaces stale cells and keeps the nearest depth of this
+/// frame. Saves clearing the map (8 MB at 1920x1080) every frame; the update is branch-free.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct MinDepthMap {
+    /// Per colour pixel; only filled around contested points (see `CloudBuilder::build_into`).
+    cells: Vec<u32>,
+    width: usize,
+    height: usize,
+    /// The same over blocks of `2^COARSE_SHIFT` pixels square: small enough to stay in cache,
+    /// it answers "nothing nearer anywhere near" for most points without the fine map.
+    coarse: Vec<u32>,
+    coarse_width: usize,
+    /// Blocks whose fine cells a contested point needs, this frame.
+    needed: Vec<bool>,
+    age: u32,
+}
+
+/// Coarse blocks of the occlusion map are 8x8 colour pixels.
+const COARSE_SHIFT: u32 = 3;
+
+impl MinDepthMap {
+    pub(crate) fn begin_frame(&mut self, width: usize, height: usize) {
+        if (self.width, self.height) != (width, height) || self.age == 0 {
+            self.cells.clear();
+            self.cells.resize(width * height, u32::MAX);
+            (self.width, self.height) = (width, height);
+            self.coarse_width = width.div_ceil(1 << COARSE_SHIFT);
+            let blocks = self.coarse_width * height.div_ceil(1 << COARSE_SHIFT);
+            self.coarse.clear();
+            self.coarse.resize(blocks, u32::MAX);
+            self.needed.clear();
+            self.needed.resize(blocks, false);
+            self.age = (1 << (32 - DEPTH_BITS)) - 1;
+        }
+        self.age -= 1;
+        self.needed.fill(false);
+    }
+
+    #[inline]
+    pub(crate) fn key(&self, q: u32) -> u32 {
+        (self.age << DEPTH_BITS) | q
+    }
+
+    #[inline]
+    pub(crate) fn block(&self, x: usize, y: usize) -> usize {
+        (y >> COARSE_SHIFT) * self.coarse_width + (x >> COARSE_SHIFT)
+    }
+
+    /// Record quantised depth `q` at pixel `(x, y)` in the block level.
+    #[inline]
+    pub(crate) fn lower_coarse(&mut self, (x, y): (usize, usize), q: u32) {
+        let (key, at) = (self.key(q), self.block(x, y));
+        self.coarse[at] = self.coarse[at].min(key);
+    }
+
+    /// Record quantised depth `q` at pixel `(x, y)` in the fine level, if a contested point
+    /// needs its block.
+    #[inline]
+    pub(crate) fn lower_fine_if_needed(&mut self, (x, y): (usize, usize), q: u32) {
+        if self.needed[self.block(x, y)] {
+            let key = self.key(q);
+            let cell = &mut self.cells[y * self.width + x];
+            *cell = (*cell).min(key);
+        }
+    }
+
+    /// The window of `(hw, hh)` pixels around `(x, y)`, clipped: `(x0, x1, y0, y1)`.
+    #[inline]
+    pub(crate) fn window(&self, (x, y): (usize, usize), (hw, hh): (usize, usize)) -> [usize; 4] {
+        [
+            x.saturating_sub(hw),
+            (x + hw).min(self.width - 1),
+            y.saturating_sub(hh),
+            (y + hh).min(self.height - 1),
+        ]
+    }
+
+    /// Is `m` a depth of this frame nearer than `limit` (quantised units)?
+    #[inline]
+    pub(crate) fn nearer(&self, m: u32, limit: f64) -> bool {
+        m >> DEPTH_BITS == self.age && f64::from(m & ((1 << DEPTH_BITS) - 1)) < limit
+    }
+
+    /// Step 1 of the test: `false` when no depth of this frame in the blocks covering the
+    /// window is nearer than `limit` (then the point is not occluded); `true` when the fine
+    /// level must decide, in which case the blocks are marked as needed.
+    #[inline]
+    pub(crate) fn contested(
+        &mut self,
+        centre: (usize, usize),
+        half: (usize, usize),
+        limit: f64,
+    ) -> bool {
+        let [x0, x1, y0, y1] = self.window(centre, half);
+        let (bx0, bx1) = (x0 >> COARSE_SHIFT, x1 >> COARSE_SHIFT);
+        let mut m = u32::MAX;
+        for by in (y0 >> COARSE_SHIFT)..=(y1 >> COARSE_SHIFT) {
+            let start = by * self.coarse_width;
+            for &block in &self.coarse[start + bx0..=start + bx1] {
+                m = m.min(block);
+            }
+        }
+        if !self.nearer(m, limit) {
+            return false;
+        }
+        for by in (y0 >> COARSE_SHIFT)..=(y1 >> COARSE_SHIFT) {
+            let start = by * self.coarse_width;
+            self.needed[start + bx0..=start + bx1].fill(true);
+        }
+        true
+    }
+
+    /// Step 2: is a depth of this frame nearer than `limit` within the window (fine level)?
+    #[inline]
+    pub(crate) fn occluded(
+        &self,
+        centre: (usize, usize),
+        half: (usize, usize),
+        limit: f64,
+    ) -> bool {
+        let [x0, x1, y0, y1] = self.window(centre, half);
+        let mut m = u32::MAX;
+        for row in y0..=y1 {
+            let start = row * self.width;
+            for &cell in &self.cells[start + x0..=start + x1] {
+                m = m.min(cell);
+            }
+        }
+        self.nearer(m, limit)
+    }
+}
