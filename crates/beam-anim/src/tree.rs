@@ -40,6 +40,46 @@ pub struct BeamBranch {
     pub w: Vector3<f64>,
 }
 
+/// A branch's polyline (points and radii, with the arc length at each) resampled at
+/// `SEGMENTS` equal steps: segment end points, and radii at the segment midpoints.
+fn resample(
+    poly: &[(Point3<f64>, f64)],
+    s_at: &[f64],
+    length_m: f64,
+) -> ([Point3<f64>; SEGMENTS + 1], [f64; SEGMENTS]) {
+    let at = |target: f64| -> (Point3<f64>, f64) {
+        let k = s_at
+            .partition_point(|&x| x < target)
+            .clamp(1, poly.len() - 1);
+        let (s0, s1) = (s_at[k - 1], s_at[k]);
+        let t = if s1 > s0 {
+            ((target - s0) / (s1 - s0)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (lerp_point(&poly[k - 1].0, &poly[k].0, t), poly[k].1)
+    };
+    let seg = length_m / SEGMENTS as f64;
+    (
+        std::array::from_fn(|k| at(k as f64 * seg).0),
+        std::array::from_fn(|k| at((k as f64 + 0.5) * seg).1),
+    )
+}
+
+/// A branch's axis `v` (base to tip) and its bending axis `u` toward `reference` (or any
+/// perpendicular when the branch points along it); `None` for a branch without length.
+fn axes(
+    points: &[Point3<f64>; SEGMENTS + 1],
+    reference: &Vector3<f64>,
+) -> Option<(Vector3<f64>, Vector3<f64>)> {
+    let v = (points[SEGMENTS] - points[0]).try_normalize(1e-12)?;
+    let u = (reference - v * reference.dot(&v))
+        .try_normalize(1e-6)
+        .or_else(|| Vector3::z().cross(&v).try_normalize(1e-6))
+        .unwrap_or_else(|| Vector3::x().cross(&v).normalize());
+    Some((v, u))
+}
+
 /// A tree of beams, parents before children.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BeamTree {
@@ -226,7 +266,6 @@ impl BeamTree {
     /// [`AnimError::ZeroLengthSegment`] for a segment without length,
     /// [`AnimError::InvalidParameter`] for a density that is not positive or a reference
     /// direction that is not finite.
-    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
     pub fn with_density(
         skeleton: &Skeleton,
         wood_density_kg_m3: f64,
@@ -288,21 +327,7 @@ impl BeamTree {
             if poly.len() < 2 || length_m <= 0.0 {
                 return Err(AnimError::ZeroLengthSegment { node: b.id });
             }
-            let at = |target: f64| -> (Point3<f64>, f64) {
-                let k = s_at
-                    .partition_point(|&x| x < target)
-                    .clamp(1, poly.len() - 1);
-                let (s0, s1) = (s_at[k - 1], s_at[k]);
-                let t = if s1 > s0 {
-                    ((target - s0) / (s1 - s0)).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                (lerp_point(&poly[k - 1].0, &poly[k].0, t), poly[k].1)
-            };
-            let seg = length_m / SEGMENTS as f64;
-            let points: [Point3<f64>; SEGMENTS + 1] = std::array::from_fn(|k| at(k as f64 * seg).0);
-            let radii_m: [f64; SEGMENTS] = std::array::from_fn(|k| at((k as f64 + 0.5) * seg).1);
+            let (points, radii_m) = resample(&poly, &s_at, length_m);
             let mut mass_kg = 0.0;
             for k in 0..SEGMENTS {
                 let l = (points[k + 1] - points[k]).norm();
@@ -311,13 +336,8 @@ impl BeamTree {
                 }
                 mass_kg += wood_density_kg_m3 * std::f64::consts::PI * radii_m[k].powi(2) * l;
             }
-            let v = (points[SEGMENTS] - points[0])
-                .try_normalize(1e-12)
-                .ok_or(AnimError::ZeroLengthSegment { node: b.id })?;
-            let u = (reference - v * reference.dot(&v))
-                .try_normalize(1e-6)
-                .or_else(|| Vector3::z().cross(&v).try_normalize(1e-6))
-                .unwrap_or_else(|| Vector3::x().cross(&v).normalize());
+            let (v, u) =
+                axes(&points, &reference).ok_or(AnimError::ZeroLengthSegment { node: b.id })?;
             let parent = b.parent.and_then(|p| by_id.get(&p).copied());
             let parent_segment = match (parent, b.base_node) {
                 (Some(pi), Some(base)) => {

@@ -227,33 +227,13 @@ fn mean_direction(vectors: &[Option<Vector3<f64>>], idx: &[usize]) -> Option<Vec
 /// without a trajectory; [`AngleError::NotInHierarchy`] for a trajectory the hierarchy does
 /// not name; [`AngleError::InvalidParameter`] when a rest interval holds no known
 /// sample of a branch or marker.
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 pub fn branch_angles(
     hierarchy: &Hierarchy,
     trajectories: &Trajectories,
     config: &AngleConfig,
 ) -> Result<AngleSet> {
     config.validate()?;
-    let index: Vec<usize> = hierarchy
-        .markers()
-        .iter()
-        .map(|m| {
-            trajectories
-                .markers()
-                .iter()
-                .position(|t| t.id == m.id)
-                .ok_or_else(|| AngleError::UnknownMarker { id: m.id.clone() })
-        })
-        .collect::<Result<_>>()?;
-    if let Some(extra) = trajectories
-        .markers()
-        .iter()
-        .find(|t| hierarchy.index_of(&t.id).is_none())
-    {
-        return Err(AngleError::NotInHierarchy {
-            id: extra.id.clone(),
-        });
-    }
+    let index = trajectory_index(hierarchy, trajectories)?;
     let filled = trajectories.fill_gaps(&config.gaps)?;
     let times = filled.trajectories.times_s();
     let n = times.len();
@@ -344,6 +324,35 @@ pub fn branch_angles(
         displacements_m,
         gaps: filled.gaps,
     })
+}
+
+/// For each marker of the hierarchy, the index of its trajectory.
+///
+/// # Errors
+/// [`AngleError::UnknownMarker`] for a hierarchy marker without a trajectory,
+/// [`AngleError::NotInHierarchy`] for a trajectory of a marker the hierarchy does not name.
+fn trajectory_index(hierarchy: &Hierarchy, trajectories: &Trajectories) -> Result<Vec<usize>> {
+    let index: Vec<usize> = hierarchy
+        .markers()
+        .iter()
+        .map(|m| {
+            trajectories
+                .markers()
+                .iter()
+                .position(|t| t.id == m.id)
+                .ok_or_else(|| AngleError::UnknownMarker { id: m.id.clone() })
+        })
+        .collect::<Result<_>>()?;
+    if let Some(extra) = trajectories
+        .markers()
+        .iter()
+        .find(|t| hierarchy.index_of(&t.id).is_none())
+    {
+        return Err(AngleError::NotInHierarchy {
+            id: extra.id.clone(),
+        });
+    }
+    Ok(index)
 }
 
 fn no_rest_sample(what: &str, rest: RestPose) -> AngleError {

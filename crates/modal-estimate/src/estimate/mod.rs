@@ -375,7 +375,19 @@ fn median_in_place(v: &mut [f64]) -> f64 {
     *m
 }
 
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
+/// The method that runs: `Auto` is a free decay (pencil) when the record's envelope decays
+/// by `decay_ratio` of at least `AMBIENT_MAX_DECAY_RATIO` or it holds fewer than
+/// `AMBIENT_MIN_CYCLES` `cycles` of its dominant frequency, ambient otherwise.
+fn chosen_method(asked: Method, decay_ratio: f64, cycles: f64) -> Method {
+    match asked {
+        Method::Auto if decay_ratio >= AMBIENT_MAX_DECAY_RATIO || cycles < AMBIENT_MIN_CYCLES => {
+            Method::Pencil
+        }
+        Method::Auto => Method::Ambient,
+        m => m,
+    }
+}
+
 fn estimate_normalised(signal: &Signal, config: &EstimateConfig) -> Result<Estimate> {
     let (low_hz, high_hz) = search_band(signal, config)?;
     let uniform = signal.resample_uniform(None)?;
@@ -393,17 +405,11 @@ fn estimate_normalised(signal: &Signal, config: &EstimateConfig) -> Result<Estim
     } else {
         None
     };
-    let method = match config.method {
-        Method::Auto => {
-            let cycles = guess_hz * signal.duration_s();
-            if on.decay_ratio >= AMBIENT_MAX_DECAY_RATIO || cycles < AMBIENT_MIN_CYCLES {
-                Method::Pencil
-            } else {
-                Method::Ambient
-            }
-        }
-        m => m,
-    };
+    let method = chosen_method(
+        config.method,
+        on.decay_ratio,
+        guess_hz * signal.duration_s(),
+    );
     let ambient = |warnings: &mut Vec<Warning>| {
         ambient_estimate(
             &uniform, signal, guess_hz, low_hz, high_hz, config, warnings,
