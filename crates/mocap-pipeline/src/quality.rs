@@ -82,23 +82,28 @@ pub(crate) fn judge_fit(result: &mut BranchResult, mode: &Mode, signal: &Signal,
             result.notes.push(format!("ours: {w}"));
         }
     }
-    if let Some(sd) = mode.frequency_std_hz
-        && 2.0 * sd > MAX_FREQUENCY_UNCERTAINTY * mode.frequency_hz
-    {
-        result.notes.push(format!(
-            "ours: the frequency is known to ±{:.2} % (two standard errors), more than {:.0} %",
-            200.0 * sd / mode.frequency_hz,
-            100.0 * MAX_FREQUENCY_UNCERTAINTY
-        ));
-    }
-    if let Some(sd) = mode.damping_std
-        && 2.0 * sd > MAX_DAMPING_UNCERTAINTY * mode.damping_ratio
-    {
-        result.notes.push(format!(
-            "ours: the damping ratio is known to ±{:.0} % (two standard errors), more than {:.0} %",
-            200.0 * sd / mode.damping_ratio,
-            100.0 * MAX_DAMPING_UNCERTAINTY
-        ));
+    let uncertainties = [
+        (
+            "frequency",
+            mode.frequency_hz,
+            mode.frequency_std_hz,
+            MAX_FREQUENCY_UNCERTAINTY,
+        ),
+        (
+            "damping ratio",
+            mode.damping_ratio,
+            mode.damping_std,
+            MAX_DAMPING_UNCERTAINTY,
+        ),
+    ];
+    for (what, value, sd, limit) in uncertainties {
+        if let Some(sd) = sd.filter(|sd| 2.0 * sd > limit * value) {
+            result.notes.push(format!(
+                "ours: the {what} is known to ±{:.2} % (two standard errors), more than {:.0} %",
+                200.0 * sd / value,
+                100.0 * limit
+            ));
+        }
     }
     if let Some(c) = cycles.filter(|c| *c < MIN_TRUSTED_CYCLES) {
         result.notes.push(format!(
