@@ -54,7 +54,7 @@ mod trajectory;
 pub use angles::{AngleConfig, AngleSet, BranchAngles, RestPose, SignedAngles, branch_angles};
 pub use error::{AngleError, Result};
 pub use hierarchy::{Branch, Hierarchy, MarkerNode, Pruned};
-pub use motion::{DEFAULT_JUMP_M, drop_jumps, relative_swing};
+pub use motion::{DEFAULT_JUMP_M, STILL_PARENT_RATIO, drop_jumps, relative_swing};
 pub use series::Series;
 pub use trajectory::{
     Filled, Gap, GapConfig, Interpolation, MAX_COORDINATE_M, MarkerTrack, Trajectories,

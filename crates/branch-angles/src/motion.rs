@@ -13,6 +13,18 @@ use crate::trajectory::Trajectories;
 /// median follows its swing to about 1 cm. Metres.
 pub const DEFAULT_JUMP_M: f64 = 0.04;
 
+/// A marker is still inside a window when the variance of its positions there is at most
+/// this many times half the mean square of its frame-to-frame steps. For white lift noise
+/// both are the noise's variance (ratio 1, within about ±0.2 for a hundred frames); a swing
+/// slower than a sixth of the frame rate adds its variance to the first and under a tenth of
+/// it to the second, so the ratio reaches 2 when the motion's RMS equals the noise's. Below
+/// it, subtracting the marker frame by frame adds more noise than the motion it removes. (On
+/// the twin, parents in their children's tests give 0.8–1.2, the swinging children 22–56.)
+pub const STILL_PARENT_RATIO: f64 = 2.0;
+
+/// Fewest frame-to-frame steps inside the window that can call a marker still.
+const MIN_STILL_STEPS: usize = 10;
+
 /// Iteration limit of the eigen-decomposition of the swing's 3x3 covariance (it converges in
 /// a handful; the limit only bounds a corrupt input).
 const MAX_EIGEN_ITERATIONS: usize = 1000;
@@ -51,6 +63,14 @@ pub fn drop_jumps(positions: &[Option<Point3<f64>>], max_jump_m: f64) -> Vec<Opt
 /// but a twig swinging toward or away from its parent's marker leaves the angle a small,
 /// distorted copy of its motion.
 ///
+/// A parent that is still inside the window (its spread there no larger than
+/// [`STILL_PARENT_RATIO`] times what its frame-to-frame differences give white noise: the
+/// parent of a branch in its own pull-and-release test) is taken at its mean position inside
+/// the window: subtracting it frame by frame would add its lift noise to the child's swing
+/// and remove no motion (on the twin's JPEG recording this halves the twig's frequency
+/// error). A parent that moves, sways with the wind or shakes with the camera is subtracted
+/// frame by frame as before; outside the window it always is.
+///
 /// `None` when either marker is unknown or fewer than 3 frames inside the window have both.
 pub fn relative_swing(
     trajectories: &Trajectories,
@@ -59,16 +79,22 @@ pub fn relative_swing(
     window_s: (f64, f64),
 ) -> Option<Vec<Option<f64>>> {
     let (p, c) = (trajectories.marker(parent)?, trajectories.marker(child)?);
+    let inside_window = |t: &f64| (window_s.0..=window_s.1).contains(t);
+    let still_at = still_position(&p.positions_m, trajectories.times_s(), window_s);
     let rel: Vec<Option<Vector3<f64>>> = p
         .positions_m
         .iter()
         .zip(&c.positions_m)
-        .map(|(a, b)| Some(b.as_ref()? - a.as_ref()?))
+        .zip(trajectories.times_s())
+        .map(|((a, b), t)| match still_at {
+            Some(mean) if inside_window(t) => Some(b.as_ref()?.coords - mean),
+            _ => Some(b.as_ref()? - a.as_ref()?),
+        })
         .collect();
     let inside: Vec<Vector3<f64>> = rel
         .iter()
         .zip(trajectories.times_s())
-        .filter(|(_, t)| (window_s.0..=window_s.1).contains(*t))
+        .filter(|(_, t)| inside_window(t))
         .filter_map(|(r, _)| *r)
         .collect();
     if inside.len() < 3 {
@@ -87,6 +113,34 @@ pub fn relative_swing(
             .map(|r| r.map(|r| (r - mean).dot(&axis)))
             .collect(),
     )
+}
+
+/// The mean position inside `window_s` of a marker that is still there (see
+/// [`STILL_PARENT_RATIO`]), or `None` when it moves or too few frames tell.
+fn still_position(
+    positions: &[Option<Point3<f64>>],
+    times_s: &[f64],
+    window_s: (f64, f64),
+) -> Option<Vector3<f64>> {
+    let inside: Vec<Option<Vector3<f64>>> = positions
+        .iter()
+        .zip(times_s)
+        .filter(|(_, t)| (window_s.0..=window_s.1).contains(*t))
+        .map(|(p, _)| p.map(|p| p.coords))
+        .collect();
+    let steps: Vec<f64> = inside
+        .windows(2)
+        .filter_map(|w| Some((w[1]? - w[0]?).norm_squared()))
+        .collect();
+    if steps.len() < MIN_STILL_STEPS {
+        return None;
+    }
+    let known: Vec<Vector3<f64>> = inside.iter().flatten().copied().collect();
+    let n = known.len() as f64;
+    let mean = known.iter().sum::<Vector3<f64>>() / n;
+    let variance = known.iter().map(|p| (p - mean).norm_squared()).sum::<f64>() / n;
+    let step_variance = 0.5 * steps.iter().sum::<f64>() / steps.len() as f64;
+    (variance <= STILL_PARENT_RATIO * step_variance).then_some(mean)
 }
 
 #[cfg(test)]
@@ -146,5 +200,79 @@ mod tests {
         }
         assert!(relative_swing(&tr, "A", "Z", (0.0, 10.0)).is_none());
         assert!(relative_swing(&tr, "A", "B", (20.0, 30.0)).is_none());
+    }
+
+    /// Deterministic white-ish noise in [-1, 1] (a hash of the frame and axis).
+    fn noise(k: usize, axis: usize) -> f64 {
+        let x = (k * 3 + axis) as f64;
+        2.0 * ((x * 12.9898).sin() * 43_758.545_3).fract().abs() - 1.0
+    }
+
+    /// A noise-free child swinging 3 cm along x relative to a parent at (0, 0, 1), and the
+    /// parent's track: `parent_swing_m` of swing along y plus `noise_m` of lift noise.
+    fn parent_and_child(parent_swing_m: f64, noise_m: f64) -> (Trajectories, Vec<f64>) {
+        let times: Vec<f64> = (0..120).map(|i| f64::from(i) / 30.0).collect();
+        let truth: Vec<f64> = times
+            .iter()
+            .map(|t| 0.03 * (2.0 * std::f64::consts::PI * 2.0 * t).sin())
+            .collect();
+        let parent_at = |k: usize, t: f64| {
+            let sway = parent_swing_m * (2.0 * std::f64::consts::PI * 0.7 * t).sin();
+            Point3::new(0.0, sway, 1.0)
+                + Vector3::new(noise(k, 0), noise(k, 1), noise(k, 2)) * noise_m
+        };
+        let parent = MarkerTrack {
+            id: "P".into(),
+            positions_m: times
+                .iter()
+                .enumerate()
+                .map(|(k, t)| Some(parent_at(k, *t)))
+                .collect(),
+        };
+        let child = MarkerTrack {
+            id: "C".into(),
+            positions_m: times
+                .iter()
+                .zip(&truth)
+                .map(|(t, s)| {
+                    let sway = parent_swing_m * (2.0 * std::f64::consts::PI * 0.7 * t).sin();
+                    Some(Point3::new(0.3 + s, sway, 1.0))
+                })
+                .collect(),
+        };
+        (Trajectories::new(times, vec![parent, child]).unwrap(), truth)
+    }
+
+    /// Largest difference between the swing and the truth, up to the axis's sign and the
+    /// swing's mean.
+    fn worst_error(swing: &[Option<f64>], truth: &[f64]) -> f64 {
+        let v: Vec<f64> = swing.iter().map(|v| v.unwrap()).collect();
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let sign = if v.iter().zip(truth).map(|(a, b)| a * b).sum::<f64>() < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        v.iter()
+            .zip(truth)
+            .map(|(a, b)| (sign * (a - mean) - b).abs())
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn a_still_parent_lends_its_mean_not_its_noise() {
+        // A still parent with 3 mm of lift noise: the swing is the child's own, noise-free.
+        let (tr, truth) = parent_and_child(0.0, 0.003);
+        let swing = relative_swing(&tr, "P", "C", (0.0, 10.0)).unwrap();
+        assert!(worst_error(&swing, &truth) < 1e-4, "{}", worst_error(&swing, &truth));
+        // Outside the window the parent is subtracted frame by frame: its noise shows.
+        let outside = relative_swing(&tr, "P", "C", (0.0, 2.0)).unwrap();
+        assert!(worst_error(&outside[61..], &truth[61..]) > 1e-3);
+        // A parent that sways 1 cm (three times its noise) is subtracted frame by frame: the
+        // child's swing holds no trace of the parent's sway, only the parent's noise.
+        let (tr, truth) = parent_and_child(0.01, 0.003);
+        let swing = relative_swing(&tr, "P", "C", (0.0, 10.0)).unwrap();
+        let e = worst_error(&swing, &truth);
+        assert!(e > 1e-3 && e < 0.006, "{e}");
     }
 }
