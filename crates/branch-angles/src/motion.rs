@@ -240,7 +240,10 @@ mod tests {
                 })
                 .collect(),
         };
-        (Trajectories::new(times, vec![parent, child]).unwrap(), truth)
+        (
+            Trajectories::new(times, vec![parent, child]).unwrap(),
+            truth,
+        )
     }
 
     /// Largest difference between the swing and the truth, up to the axis's sign and the
@@ -264,7 +267,11 @@ mod tests {
         // A still parent with 3 mm of lift noise: the swing is the child's own, noise-free.
         let (tr, truth) = parent_and_child(0.0, 0.003);
         let swing = relative_swing(&tr, "P", "C", (0.0, 10.0)).unwrap();
-        assert!(worst_error(&swing, &truth) < 1e-4, "{}", worst_error(&swing, &truth));
+        assert!(
+            worst_error(&swing, &truth) < 1e-4,
+            "{}",
+            worst_error(&swing, &truth)
+        );
         // Outside the window the parent is subtracted frame by frame: its noise shows.
         let outside = relative_swing(&tr, "P", "C", (0.0, 2.0)).unwrap();
         assert!(worst_error(&outside[61..], &truth[61..]) > 1e-3);

@@ -1,0 +1,418 @@
+//! Candidates from a frame: a marker's weights over a region, their blobs, the template's
+//! matches, and what a blob says about the marker (width, colour, depth, holes).
+
+use super::*;
+
+/// Share of the pixels of `holds` whose colour changed since `previous` by more than
+/// [`CHANGED_LEVEL`] in some channel: a marker that just arrived changed its pixels; a
+/// static look-alike did not.
+pub(super) fn changed_share(frame: &RgbImage, previous: &RgbImage, holds: PixelRect) -> f64 {
+    let r = holds.intersect(&image_rect(frame.width(), frame.height()));
+    if r.is_empty() || previous.dimensions() != frame.dimensions() {
+        return 1.0;
+    }
+    let (mut changed, mut all) = (0usize, 0usize);
+    for y in r.y..r.bottom() as i32 {
+        for x in r.x..r.right() as i32 {
+            let (a, b) = (
+                frame.get_pixel(x as u32, y as u32).0,
+                previous.get_pixel(x as u32, y as u32).0,
+            );
+            all += 1;
+            if a.iter()
+                .zip(&b)
+                .any(|(&p, &q)| p.abs_diff(q) > CHANGED_LEVEL)
+            {
+                changed += 1;
+            }
+        }
+    }
+    changed as f64 / all.max(1) as f64
+}
+
+/// The weights of marker `m`'s model over `rect`, with its mask, depth gate and the `masked`
+/// rectangles, and its streak weights against the `previous` frame (recovering tracker, colour
+/// models).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn fill(
+    region: &mut Region,
+    config: &TrackerConfig,
+    m: &MarkerState,
+    frame: &RgbImage,
+    previous: Option<&RgbImage>,
+    depth: Option<&DepthView<'_>>,
+    rect: PixelRect,
+    masked: &[PixelRect],
+) {
+    let gate = match (config.depth_gate_m, m.depth_m, depth) {
+        (Some(g), Some(dm), Some(d)) => Some((g, dm, *d)),
+        _ => None,
+    };
+    let colour_model = !matches!(config.model, AppearanceModel::Gray { .. });
+    let streak = previous
+        .filter(|_| config.recovery && colour_model)
+        .map(|previous| Streak {
+            previous,
+            colour: m.colour,
+        });
+    let filter = PixelFilter {
+        depth: gate,
+        masked,
+        streak,
+    };
+    region.fill(&config.model, &m.model, &m.lookup, frame, rect, &filter);
+}
+
+/// Learn the marker's blob in its first window: threshold, pixel count, width.
+pub(super) fn learn_blob(
+    m: &mut MarkerState,
+    region: &Region,
+    labeler: &mut Labeler,
+    window: PixelRect,
+) {
+    // The marker's pixels: the heaviest tenth of the window sets the scale.
+    let mut inside: Vec<f32> = Vec::new();
+    let w = window.intersect(&region.rect);
+    for y in w.y..w.bottom() as i32 {
+        for x in w.x..w.right() as i32 {
+            let v = region.weights[region.index(x, y)];
+            if v > 0.0 {
+                inside.push(v);
+            }
+        }
+    }
+    if inside.is_empty() {
+        return;
+    }
+    let k = inside.len() / 10;
+    let top = *inside.select_nth_unstable_by(k, |a, b| b.total_cmp(a)).1;
+    let threshold = (top * BLOB_THRESHOLD).max(1.0);
+    let c = window.center();
+    // The least gap that makes the marker's pixels in its window one blob.
+    let mut best = None;
+    for gap in 1..=MAX_GAP_PX {
+        let blobs = labeler.blobs(&region.weights, region.rect, region.rect, threshold, 1, gap);
+        let inside: Vec<(f64, &Blob)> = blobs
+            .iter()
+            .map(|b| {
+                let part =
+                    b.bounds.intersect(&window).area() as f64 / b.bounds.area().max(1) as f64;
+                (b.mass * part, b)
+            })
+            .filter(|(w, _)| *w > 0.0)
+            .collect();
+        let total: f64 = inside.iter().map(|(w, _)| w).sum();
+        let main = inside
+            .iter()
+            .min_by(|a, b| {
+                (a.1.centroid - c)
+                    .norm()
+                    .total_cmp(&(b.1.centroid - c).norm())
+            })
+            .map(|(w, b)| (*w, **b));
+        if let Some((w, b)) = main {
+            best = Some((gap, b));
+            if w >= ONE_BLOB_SHARE * total {
+                break;
+            }
+        }
+    }
+    if let Some((gap, _)) = best {
+        m.reference.gap = gap;
+    }
+
+    let best = best.map(|(_, b)| b);
+    m.reference.threshold = threshold;
+    if let Some(b) = best {
+        m.reference.pixels = b.pixels as f64;
+        m.reference.pixel_weight = b.mass / b.pixels as f64;
+        m.reference.width_px = b.width_px().max(2.0);
+    } else {
+        m.reference.pixel_weight = f64::from(top);
+    }
+}
+
+/// The gap a marker's blob must bridge where the image has holes (pixels with no data,
+/// black, as a projection image where no point projected): around `window` (a window on
+/// every side), more than [`HOLES_SPARSE`] holes need 2 pixels, more than [`HOLES_SPLATTED`]
+/// need 3 (splats with holes between them).
+pub(super) fn hole_gap(frame: &RgbImage, window: PixelRect) -> usize {
+    let around = window
+        .grown(window.width, window.height)
+        .intersect(&image_rect(frame.width(), frame.height()));
+    let (mut holes, mut all) = (0usize, 0usize);
+    for y in around.y..around.bottom() as i32 {
+        for x in around.x..around.right() as i32 {
+            let p = frame.get_pixel(x as u32, y as u32).0;
+            all += 1;
+            if p.iter().all(|&c| c <= HOLE_LEVEL) {
+                holes += 1;
+            }
+        }
+    }
+    let share = holes as f64 / all.max(1) as f64;
+    if share > HOLES_SPLATTED {
+        3
+    } else if share > HOLES_SPARSE {
+        2
+    } else {
+        1
+    }
+}
+
+/// Mean RGB of the pixels of `window` whose weight is at least `threshold` (the marker's
+/// own), or of the whole window if none is.
+pub(super) fn mean_colour(
+    frame: &RgbImage,
+    region: &Region,
+    window: PixelRect,
+    threshold: f32,
+) -> [f32; 3] {
+    let w = window.intersect(&region.rect);
+    let (mut sum, mut all, mut n, mut n_all) = ([0.0f64; 3], [0.0f64; 3], 0.0f64, 0.0f64);
+    for y in w.y..w.bottom() as i32 {
+        for x in w.x..w.right() as i32 {
+            let p = frame.get_pixel(x as u32, y as u32).0;
+            let own = region.weights[region.index(x, y)] >= threshold;
+            for c in 0..3 {
+                all[c] += f64::from(p[c]);
+                if own {
+                    sum[c] += f64::from(p[c]);
+                }
+            }
+            n_all += 1.0;
+            if own {
+                n += 1.0;
+            }
+        }
+    }
+    let (s, k) = if n > 0.0 {
+        (sum, n)
+    } else {
+        (all, n_all.max(1.0))
+    };
+    [(s[0] / k) as f32, (s[1] / k) as f32, (s[2] / k) as f32]
+}
+
+/// True when a blob could be the marker: wide as the marker (blur makes a streak longer, not
+/// wider), not longer than a streak can be, with enough of its pixels.
+pub(super) fn plausible(blob: &Blob, r: &Reference) -> bool {
+    let width = blob.width_px() / r.width_px;
+    let length = blob.length_px() / r.width_px;
+    (BLOB_WIDTH_RANGE[0]..=BLOB_WIDTH_RANGE[1]).contains(&width)
+        && length <= BLOB_MAX_LENGTH
+        && blob.pixels as f64 >= BLOB_MIN_PIXELS * r.pixels
+}
+
+/// How much a blob looks like the marker, 0..=1 (see [`Observation::confidence`]): its
+/// colour (mean weight against the marker's), its width (a wider blob is another object; a
+/// narrower one may be the marker partly covered) and the share of the marker's pixels it
+/// holds.
+pub(super) fn blob_confidence(blob: &Blob, r: &Reference) -> f64 {
+    let colour = (blob.mass / blob.pixels as f64 / r.pixel_weight).min(1.0);
+    let wider = (blob.width_px() / r.width_px).ln().max(0.0);
+    let shape = (-0.5 * (wider / 0.35).powi(2)).exp();
+    let held = (blob.pixels as f64 / (0.6 * r.pixels)).min(1.0);
+    colour * shape * held
+}
+
+/// The marker-like blobs of the region's weights as measurements (heaviest first), with the
+/// pairs of nearby fragments that make one marker together (a marker cut by a twig). A blob
+/// on which another marker (`others`: predictions of markers found in the last frame) is
+/// predicted as well as this one (`own`) is shared: this marker's candidate is the part
+/// nearer to it.
+pub(super) fn candidates_in(
+    region: &mut Region,
+    labeler: &mut Labeler,
+    m: &MarkerState,
+    own: Option<Point2<f64>>,
+    others: &[Point2<f64>],
+) -> Vec<Measured> {
+    let blobs = labeler.blobs(
+        &region.weights,
+        region.rect,
+        region.rect,
+        m.reference.threshold,
+        FRAGMENT_MIN_PIXELS,
+        m.reference.gap,
+    );
+
+    let (w, h) = m.size;
+    let on = |p: &Point2<f64>, r: PixelRect| {
+        p.x >= f64::from(r.x)
+            && p.y >= f64::from(r.y)
+            && p.x < r.right() as f64
+            && p.y < r.bottom() as f64
+    };
+    let mut out = Vec::new();
+    for (k, b) in blobs.iter().enumerate() {
+        if out.len() >= MAX_CANDIDATES {
+            break;
+        }
+        let sharing: Vec<Point2<f64>> = others
+            .iter()
+            .filter(|p| on(p, b.bounds.grown(w / 2, h / 2)))
+            .copied()
+            .collect();
+        if let Some(own) = own.filter(|p| !sharing.is_empty() && on(p, b.bounds.grown(w, h))) {
+            let mut centres = vec![own];
+            centres.extend(sharing);
+            let parts = labeler.split(&region.weights, region.rect, b, &centres);
+            if let Some(part) = parts
+                .first()
+                .filter(|p| p.pixels > 0 && plausible(p, &m.reference))
+            {
+                out.push(measured_at(region, m, part));
+            }
+            continue;
+        }
+        if plausible(b, &m.reference) {
+            let mut steady = *b;
+            let window = PixelRect::centered_at(b.centroid, m.size.0, m.size.1);
+            let pieces = (m.reference.pixels * BLOB_MIN_PIXELS).ceil() as usize;
+            steady.centroid =
+                labeler.edge_centroid(&region.weights, region.rect, b, window, pieces);
+            out.push(measured_at(region, m, &steady));
+        }
+        // Fragments closer than the marker's width whose union is a whole marker.
+        for c in &blobs[k + 1..] {
+            if (b.centroid - c.centroid).norm() < m.reference.width_px {
+                let u = b.merged(c);
+                if plausible(&u, &m.reference) {
+                    out.push(measured_at(region, m, &u));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A measurement at a blob: its centroid, the window there and its confidence.
+pub(super) fn measured_at(region: &mut Region, m: &MarkerState, blob: &Blob) -> Measured {
+    let window = PixelRect::centered_at(blob.centroid, m.size.0, m.size.1);
+    let confidence = match &m.model {
+        // The kernel model's colour evidence is the Bhattacharyya coefficient.
+        MarkerModel::Kernel { q, .. } => {
+            let colour =
+                (blob.mass / blob.pixels as f64 / m.reference.pixel_weight).clamp(1e-9, 1.0);
+            region.bhattacharyya(q, blob.centroid, m.size) * blob_confidence(blob, &m.reference)
+                / colour
+        }
+        MarkerModel::Projected { .. } => blob_confidence(blob, &m.reference),
+    };
+    Measured {
+        center: blob.centroid,
+        window,
+        holds: blob.bounds.grown(1, 1),
+        confidence: confidence.clamp(0.0, 1.0),
+        moments: moments_of(region, window),
+    }
+}
+
+/// The gray target's template matches within `radius` of `center` as measurements; the
+/// confidence is the correlation (negative counts as 0).
+pub(super) fn template_candidates(
+    t: &Template,
+    m: &MarkerState,
+    frame: &RgbImage,
+    center: Point2<f64>,
+    radius: f64,
+    max: usize,
+    scratch: &mut Vec<f32>,
+) -> Vec<Measured> {
+    let (w, h) = m.size;
+    t.search(frame, center, radius, max, scratch)
+        .into_iter()
+        .map(|found| {
+            let window = PixelRect::centered_at(found.center, w, h);
+            Measured {
+                center: found.center,
+                window,
+                holds: window,
+                confidence: found.ncc.max(0.0),
+                moments: None,
+            }
+        })
+        .collect()
+}
+
+/// Moments of `window` and a 10-pixel border (CamShift's size estimate).
+pub(super) fn moments_of(region: &Region, window: PixelRect) -> Option<Moments> {
+    let g = region.sums(window.grown(ADAPTIVE_BORDER_PX, ADAPTIVE_BORDER_PX));
+    (g[0] > 0.0).then(|| moments_from_f64_sums(g))
+}
+
+/// The mode as the measurement (plain mean-shift).
+pub(super) fn plain(region: &Region, mode: Mode) -> Measured {
+    Measured {
+        center: mode.center,
+        window: mode.window,
+        holds: mode.window,
+        confidence: mode.confidence,
+        moments: mode.moments.or_else(|| moments_of(region, mode.window)),
+    }
+}
+
+/// The predictions of the markers other than `i` that were found in the last frame: where
+/// a blob must be shared.
+pub(super) fn sharing_predictions(
+    markers: &[MarkerState],
+    i: usize,
+    predictions: &[Point2<f64>],
+) -> Vec<Point2<f64>> {
+    markers
+        .iter()
+        .zip(predictions)
+        .enumerate()
+        .filter(|(j, (m, _))| *j != i && m.misses == 0)
+        .map(|(_, (_, p))| *p)
+        .collect()
+}
+
+/// True when `at` is on another marker's predicted place: nearer to that marker's prediction
+/// than to marker `i`'s, and within that marker's window size of it. Only markers found in
+/// the last frame claim their prediction: a coasting marker's is a guess.
+pub(super) fn nearer_to_other(
+    markers: &[MarkerState],
+    i: usize,
+    at: Point2<f64>,
+    predictions: &[Point2<f64>],
+) -> bool {
+    let own = (at - predictions[i]).norm();
+    predictions.iter().enumerate().any(|(j, p)| {
+        let d = (at - p).norm();
+        j != i && markers[j].last_status.found() && d < own && d < window_px(&markers[j])
+    })
+}
+
+/// True when `at` is on a place another marker took this frame.
+pub(super) fn taken(
+    markers: &[MarkerState],
+    i: usize,
+    at: Point2<f64>,
+    claimed: &[(usize, PixelRect, Point2<f64>)],
+) -> bool {
+    let mine = window_px(&markers[i]);
+    claimed.iter().any(|&(j, _, c)| {
+        j != i && (c - at).norm() < EXCLUSION_FRACTION * 0.5 * (mine + window_px(&markers[j]))
+    })
+}
+
+/// Median depth of the pixels of `window` with depth (the marker's depth for gating).
+pub(super) fn window_depth(depth: &DepthView<'_>, window: PixelRect) -> Option<f64> {
+    let w = window.intersect(&PixelRect::image(depth.width, depth.height));
+    let mut values: Vec<f64> = Vec::with_capacity(w.area() as usize);
+    for y in w.y..w.bottom() as i32 {
+        for x in w.x..w.right() as i32 {
+            if let Some(d) = depth.at(x, y) {
+                values.push(d);
+            }
+        }
+    }
+    if values.is_empty() {
+        return None;
+    }
+    let mid = values.len() / 2;
+    values.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(values[mid])
+}

@@ -1,0 +1,687 @@
+//! The multi-marker tracker: mean-shift per marker as the paper ran it, with what the paper
+//! did by hand done automatically and a motion model that knows how unsure it is.
+//!
+//! Each frame:
+//! 1. **Predict** every marker with a constant-velocity Kalman filter ([`MotionModel`]); its
+//!    covariance is the gate: how far from the prediction a measurement may lie.
+//! 2. **Quick pass**: mean-shift from the prediction over a region three windows wide; the
+//!    measurement is the weighted centroid of the blob the window converged on (for a marker
+//!    smeared by motion blur, the streak's centre), or the window's centroid when no
+//!    marker-sized blob is there. A marker found in the last frame is `tracked` when the
+//!    measurement lies in the gate, looks like the marker (its [`Observation::confidence`] is
+//!    at least [`TrackerConfig::min_confidence`]), no other marker holds that place or is
+//!    nearer to it, after a jump of more than half a window, its surroundings still look
+//!    like the marker's ([`TrackerConfig::context_check`]), and it lies near the line the
+//!    marker has been swinging along, when it has one (a same-look marker crossing its path
+//!    is off that line where the two paths are apart).
+//! 3. **Detection** for every other marker: the motion model takes the miss as a manoeuvre
+//!    (a release), so the gate opens to [`TrackerConfig::search_radius_windows`] windows, and
+//!    wider with every further frame without a measurement, up to the whole frame. In the gate,
+//!    the marker's appearance is thresholded into connected blobs; blobs of a marker's width
+//!    and colour are candidates. All undecided markers and all candidates are then **assigned
+//!    jointly and exclusively** at least total cost (squared gate distance plus appearance,
+//!    surroundings and the offset from the marker's swing line), so a candidate goes to the
+//!    marker it fits best, and to none whose gate or appearance it does not fit. A marker so
+//!    found is `recovered`.
+//! 4. A marker without a measurement coasts on its prediction (`predicted`) for up to
+//!    [`TrackerConfig::max_coast_frames`] frames, then is `lost` (no centre) while the search
+//!    goes on.
+//!
+//! Centres are in pixel coordinates with pixel centres at integers.
+
+use image::RgbImage;
+use nalgebra::{Point2, Vector2};
+
+use crate::assign::assign;
+use crate::detect::{Blob, Labeler};
+use crate::error::{Result, TrackError};
+use crate::hsv::ChannelRange;
+use crate::kalman::Kalman;
+use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
+use crate::model::{AppearanceModel, MarkerModel, marker_mask};
+use crate::rect::PixelRect;
+use crate::region::{Lookup, Mode, PixelFilter, Region, Streak};
+use crate::swing::Swing;
+use crate::template::Template;
+
+mod blobs;
+mod config;
+mod init;
+mod joint;
+mod passes;
+mod state;
+mod track;
+
+use blobs::*;
+pub use config::{MotionModel, TrackerConfig, WindowMode};
+use joint::*;
+use state::*;
+pub use track::{DepthView, MarkerInit, Observation, Track, TrackStatus, TrackSummary};
+
+/// Squared gate distance (2 degrees of freedom) inside which a measurement belongs to a
+/// prediction: the chi-square quantile of 0.999.
+const GATE_CHI2: f64 = 13.82;
+/// Standard deviation of a measured centre (pixels).
+const MEASUREMENT_PX: f64 = 1.0;
+/// Least acceleration noise of the motion model (pixels per frame²): a marker at rest still
+/// trembles.
+const ACCELERATION_MIN_PX: f64 = 0.7;
+/// Share of each frame's squared innovation blended into the acceleration noise: the model
+/// expects as much change as it has recently seen.
+const ACCELERATION_RATE: f64 = 0.3;
+/// Markers closer than this fraction of their mean window size are on the same blob.
+const EXCLUSION_FRACTION: f64 = 0.75;
+/// The context template is this many times the window in each direction: the marker and
+/// half a window of its surroundings on every side.
+const CONTEXT_SCALE: i32 = 2;
+/// Share of each accepted frame's patch blended into the context template.
+const CONTEXT_RATE: f32 = 0.1;
+/// Share of each confidently tracked frame's patch blended into a gray target's template.
+const TEMPLATE_RATE: f32 = 0.05;
+/// Least confidence (template correlation) of a frame that updates a gray target's template.
+const TEMPLATE_UPDATE_CONFIDENCE: f64 = 0.8;
+/// A quick-pass result after a jump whose context correlation is this far below the
+/// marker's typical one goes to the joint assignment, where other candidates compete.
+const CONTEXT_DROP: f64 = 0.08;
+/// Typical context correlation below which the surroundings are too plain or too noisy to
+/// tell markers apart, and the context is not used for the marker.
+const CONTEXT_MIN_LEVEL: f64 = 0.6;
+/// Most a candidate's context shortfall (from the best candidate's) may cost.
+const CONTEXT_CAP: f64 = 12.0;
+/// Least spread assumed for a marker's context correlation.
+const CONTEXT_SIGMA_MIN: f64 = 0.02;
+/// Most a candidate's confidence shortfall (from the best candidate's) may cost.
+const APPEARANCE_CAP: f64 = 8.0;
+/// Spreads below its usual confidence at which a measurement is not accepted without
+/// competition.
+const TYPICAL_SIGMAS: f64 = 3.0;
+/// Least spread assumed for a marker's confidence.
+const CONFIDENCE_SIGMA_MIN: f64 = 0.08;
+/// Share of each found frame blended into a marker's running appearance statistics.
+const APPEARANCE_RATE: f64 = 0.2;
+/// Prior probability that a marker is not where the motion model expects it (a release, a
+/// jump): the weight of the wide component of the motion likelihood.
+const MANOEUVRE_PRIOR: f64 = 0.1;
+/// Cost (negative log-likelihood, relative to a perfect candidate at the prediction) above
+/// which a marker rather stays unmatched.
+const UNMATCHED_COST: f64 = 12.0;
+/// Distance (windows, plus one frame's motion) from the border within which a marker last
+/// seen there counts as having left the frame when predicted outside it.
+const BORDER_WINDOWS: f64 = 2.0;
+/// Cost of taking, by a manoeuvre, a place that lies in another marker's normal gate.
+const OWNED_COST: f64 = 6.0;
+/// Distance (windows) within which candidates of different markers are one place: two
+/// markers cannot both be closer than this, so one place cannot go to two of them.
+const PLACE_SHARE: f64 = 0.5;
+/// Least lead (cost units, nats) of a marker's best place over its next choice for the marker
+/// to be decided on its own, before its neighbours: e^3, twenty times likelier.
+const ANCHOR_MARGIN: f64 = 3.0;
+/// Reach (windows) within which a decided marker's displacement guides an ambiguous one.
+const NEIGHBOUR_RADIUS_WINDOWS: f64 = 6.0;
+/// A marker found again after this many frames without a measurement, away from its coasted
+/// prediction, starts at rest, its velocity unknown (of the order of a window per frame).
+const STOP_AFTER_MISSES: usize = 2;
+
+/// Distance, in windows, within which a same-look marker can take this one's place.
+const CROWD_WINDOWS: f64 = 3.0;
+
+/// A quick-pass measurement further than this many spreads from the marker's swing line
+/// goes to detection (a same-look marker crossing its path took the window).
+const LINE_ACCEPT_SPREADS: f64 = 3.0;
+
+/// Largest cost of a candidate off the marker's swing line (nats; 4 is an offset of about
+/// 2.8 spreads).
+const LINE_COST_CAP: f64 = 4.0;
+
+/// Largest cost of disagreeing with the neighbours' displacement.
+const NEIGHBOUR_CAP: f64 = 6.0;
+/// Reach (windows) within which a marker that is not found counts as merged with a found
+/// marker of the same look.
+const MERGED_WINDOWS: f64 = 0.75;
+/// Largest distance (8-bit RGB) between two markers' mean colours for them to look alike.
+const SAME_LOOK_RGB: f32 = 40.0;
+/// Rate of the running means of how alike two markers move.
+const COHERENCE_RATE: f64 = 0.2;
+/// Least running mean of the two markers' squared displacements (px^2 per frame) for their
+/// likeness to mean anything (static markers are alike by default).
+const COHERENCE_MIN_MOTION_PX2: f64 = 1.0;
+/// Largest share of the squared displacements that their squared difference may be for two
+/// markers to count as moving alike (their displacements agree to about a third).
+const COHERENCE_RATIO: f64 = 0.1;
+/// Extra cost of a candidate on a look-alike the marker has turned down before, when it lies
+/// outside the motion model's normal gate.
+const DISTRACTOR_COST: f64 = 6.0;
+/// A candidate within this fraction of the window of a known look-alike is on it.
+const DISTRACTOR_RADIUS: f64 = 0.3;
+/// Look-alikes remembered per marker (the oldest is forgotten first).
+const MAX_DISTRACTORS: usize = 32;
+/// Sightings counted per look-alike, at most.
+const MAX_SEEN: u32 = 64;
+/// A look-alike seen again within this distance (pixels) has not moved.
+const STATIC_PX: f64 = 1.5;
+/// Border of CamShift's size estimate around the window (OpenCV's `TOLERANCE`).
+const ADAPTIVE_BORDER_PX: i32 = 10;
+/// Blobs of fewer pixels are noise, not pieces of a marker.
+const FRAGMENT_MIN_PIXELS: usize = 3;
+/// A pixel whose colour moved this much (8-bit levels, in some channel) since the previous
+/// frame has changed (colour noise and JPEG stay below it).
+const CHANGED_LEVEL: u8 = 30;
+/// A candidate farther than a window from where its marker was last seen (in the frame
+/// before) changed on less than this share of its pixels: it was there already, so it is
+/// not the marker arriving.
+const STATIC_SHARE: f64 = 0.3;
+/// Extra cost of such a static candidate.
+const STATIC_JUMP_COST: f64 = 8.0;
+/// A pixel no brighter than this in every channel is a hole (no data).
+const HOLE_LEVEL: u8 = 2;
+/// Share of holes around a marker above which its blob bridges 2-pixel gaps.
+const HOLES_SPARSE: f64 = 0.06;
+/// Share of holes above which it bridges 3-pixel gaps (a splatted projection image).
+const HOLES_SPLATTED: f64 = 0.15;
+/// Largest gap (pixels) tried between a marker's pixels on the first frame.
+const MAX_GAP_PX: usize = 4;
+/// The marker is one blob when the blob nearest the window's centre holds this share of the
+/// window's blob weight.
+const ONE_BLOB_SHARE: f64 = 0.8;
+/// Blob pixels are those whose weight is at least this share of the marker's typical pixel
+/// weight.
+const BLOB_THRESHOLD: f32 = 0.35;
+/// A blob needs at least this share of the marker's pixels (a partly covered marker).
+const BLOB_MIN_PIXELS: f64 = 0.15;
+/// A candidate blob's width (minor axis) lies within these multiples of the marker's.
+const BLOB_WIDTH_RANGE: [f64; 2] = [0.4, 1.7];
+/// Longest streak a blob may be, in marker widths (a marker swept across 5 of its widths
+/// during the exposure).
+const BLOB_MAX_LENGTH: f64 = 6.0;
+/// Most candidates per marker and frame (the heaviest blobs).
+const MAX_CANDIDATES: usize = 16;
+/// Share of the velocity kept per frame without a measurement: a swing turns back.
+const COAST_VELOCITY_DECAY: f64 = 0.8;
+
+/// What a marker looked like on the first frame, as the measurements see it.
+#[derive(Debug, Clone, Copy)]
+struct Reference {
+    /// Weight in the user's window (mean-shift confidence).
+    mass: f64,
+    /// Mean weight of the marker's blob pixels.
+    pixel_weight: f64,
+    /// Blob pixels weigh at least this.
+    threshold: f32,
+    /// Pixels of the marker's blob.
+    pixels: f64,
+    /// Minor axis of the marker's blob (pixels): its width, which motion blur keeps.
+    width_px: f64,
+    /// Largest gap between a marker's pixels (holes, splats) that still makes one blob: the
+    /// least that made the marker one blob on the first frame (1 is 8-connectivity).
+    gap: usize,
+}
+
+/// A place where a marker's look-alike was seen and turned down.
+#[derive(Debug, Clone, Copy)]
+struct Distractor {
+    at: Point2<f64>,
+    /// Its pixels (the blob's box, grown by a pixel).
+    bounds: PixelRect,
+    /// Times seen at this place (within [`STATIC_PX`]); static from 2 on.
+    seen: u32,
+}
+
+#[derive(Debug, Clone)]
+struct MarkerState {
+    id: String,
+    model: MarkerModel,
+    /// The model and the mask as per-pixel table lookups (built once).
+    lookup: Lookup,
+    init_size: (i32, i32),
+    size: (i32, i32),
+    filter: Kalman,
+    /// The swing learnt from the marker's recent track (turns the prediction).
+    swing: Swing,
+    /// Acceleration noise of the motion model now (pixels per frame²).
+    acceleration_px: f64,
+    last_center: Point2<f64>,
+    reference: Reference,
+    depth_m: Option<f64>,
+    /// Frames since the last measurement.
+    misses: usize,
+    last_status: TrackStatus,
+    /// The surroundings, with [`TrackerConfig::context_check`].
+    context: Option<Template>,
+    /// The marker's own window as a gray template (gray model): its measurement.
+    template: Option<Template>,
+    /// Typical context correlation of accepted frames.
+    context_level: f64,
+    /// Variance of the context correlation of accepted frames.
+    context_var: f64,
+    /// Typical confidence of accepted frames.
+    confidence_mean: f64,
+    /// Variance of the confidence of accepted frames.
+    confidence_var: f64,
+    /// Innovation variance of this frame's prediction (pixels²).
+    gate_var: f64,
+    /// Look-alikes this marker turned down.
+    distractors: Vec<Distractor>,
+    /// Mean colour (RGB) of the marker's pixels on the first frame.
+    colour: [f32; 3],
+}
+
+/// A measurement: where, how well it looks like the marker, and the pixels it holds.
+#[derive(Debug, Clone, Copy)]
+struct Measured {
+    center: Point2<f64>,
+    /// The window at the measurement.
+    window: PixelRect,
+    /// Pixels this measurement occupies (the blob's box, or the window).
+    holds: PixelRect,
+    confidence: f64,
+    /// Moments of the window and a border (histogram models), for the adaptive size.
+    moments: Option<Moments>,
+}
+
+/// A candidate of one marker, with its surroundings' correlation and its cost.
+#[derive(Debug, Clone, Copy)]
+struct Scored {
+    measured: Measured,
+    context: Option<f64>,
+    cost: f64,
+}
+
+/// One candidate of the joint assignment.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    marker: usize,
+    measured: Measured,
+    cost: f64,
+    context: Option<f64>,
+}
+
+/// The tracker. Create it on the first frame with the users' windows, then call
+/// [`Tracker::update`] once per frame.
+#[derive(Debug)]
+pub struct Tracker {
+    config: TrackerConfig,
+    width: u32,
+    height: u32,
+    markers: Vec<MarkerState>,
+    tracks: Vec<Track>,
+    region: Region,
+    labeler: Labeler,
+    /// Patch scratch for the context correlation.
+    patch: Vec<f32>,
+    /// The last frame given: the background of this frame's streaks.
+    previous: Option<RgbImage>,
+    /// Per pair of markers (row-major `n x n`), how alike they have moved.
+    coherence: Vec<Coherence>,
+}
+
+/// How alike two markers have moved: running means of the squared difference of their
+/// displacements and of the sum of their squared displacements, over frames both were found
+/// in consecutively.
+#[derive(Debug, Clone, Copy, Default)]
+struct Coherence {
+    difference_px2: f64,
+    motion_px2: f64,
+}
+
+impl Coherence {
+    fn learn(&mut self, a: Vector2<f64>, b: Vector2<f64>) {
+        self.difference_px2 += COHERENCE_RATE * ((a - b).norm_squared() - self.difference_px2);
+        self.motion_px2 += COHERENCE_RATE * (a.norm_squared() + b.norm_squared() - self.motion_px2);
+    }
+
+    /// Not seen to move differently: alike (one rig, one branch, one camera shake), or not
+    /// seen moving enough to tell.
+    fn coherent(&self) -> bool {
+        self.motion_px2 < COHERENCE_MIN_MOTION_PX2
+            || self.difference_px2 <= COHERENCE_RATIO * self.motion_px2
+    }
+}
+
+fn image_rect(width: u32, height: u32) -> PixelRect {
+    PixelRect::image(width, height)
+}
+
+fn clamp_into(p: Point2<f64>, width: u32, height: u32) -> Point2<f64> {
+    let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
+    Point2::new(
+        finite(p.x).clamp(0.0, f64::from(width) - 1.0),
+        finite(p.y).clamp(0.0, f64::from(height) - 1.0),
+    )
+}
+
+impl Tracker {
+    /// Start tracking `markers` on the first frame: learn each marker's appearance from its
+    /// window and refine its centre there.
+    ///
+    /// # Errors
+    /// As [`TrackerConfig::validate`]; [`TrackError::EmptyImage`] for an empty frame;
+    /// [`TrackError::InvalidParameter`] for no markers; [`TrackError::DuplicateId`];
+    /// [`TrackError::EmptyWindow`] / [`TrackError::WindowOutsideImage`] for a window that is
+    /// empty or not entirely inside the frame; [`TrackError::EmptyModel`] when a window holds
+    /// no pixel the model can use; [`TrackError::SizeMismatch`] for a depth map of another
+    /// size.
+    pub fn new(
+        config: TrackerConfig,
+        first_frame: &RgbImage,
+        depth: Option<DepthView<'_>>,
+        markers: &[MarkerInit],
+    ) -> Result<Self> {
+        config.validate()?;
+        let (width, height) = first_frame.dimensions();
+        if width == 0 || height == 0 {
+            return Err(TrackError::EmptyImage {
+                what: "frame 0".into(),
+            });
+        }
+        if markers.is_empty() {
+            return Err(TrackError::param("markers", "no marker to track"));
+        }
+        let mut tracker = Self {
+            config,
+            width,
+            height,
+            markers: Vec::with_capacity(markers.len()),
+            tracks: Vec::with_capacity(markers.len()),
+            region: Region::default(),
+            labeler: Labeler::default(),
+            patch: Vec::new(),
+            previous: None,
+            coherence: vec![Coherence::default(); markers.len() * markers.len()],
+        };
+        tracker.check_depth(depth.as_ref())?;
+        for (k, init) in markers.iter().enumerate() {
+            if markers[..k].iter().any(|m| m.id == init.id) {
+                return Err(TrackError::DuplicateId {
+                    id: init.id.clone(),
+                });
+            }
+        }
+        for init in markers {
+            tracker.add_marker(first_frame, depth.as_ref(), init)?;
+        }
+        if tracker.config.recovery {
+            tracker.learn_distractors(first_frame, depth.as_ref());
+            tracker.previous = Some(first_frame.clone());
+        }
+        Ok(tracker)
+    }
+
+    fn check_depth(&self, depth: Option<&DepthView<'_>>) -> Result<()> {
+        if let Some(d) = depth
+            && (d.width, d.height) != (self.width, self.height)
+        {
+            return Err(TrackError::SizeMismatch {
+                what: "depth map".into(),
+                expected_width: self.width,
+                expected_height: self.height,
+                found_width: d.width,
+                found_height: d.height,
+            });
+        }
+        Ok(())
+    }
+
+    /// Track every marker into the next frame.
+    ///
+    /// # Errors
+    /// [`TrackError::EmptyImage`] for an empty frame; [`TrackError::SizeMismatch`] when the
+    /// frame (or depth map) differs in size from the first frame. The tracker is unchanged
+    /// by a failed call.
+    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
+    pub fn update(&mut self, frame: &RgbImage, depth: Option<DepthView<'_>>) -> Result<()> {
+        let index = self.frames();
+        if frame.width() == 0 || frame.height() == 0 {
+            return Err(TrackError::EmptyImage {
+                what: format!("frame {index}"),
+            });
+        }
+        if frame.dimensions() != (self.width, self.height) {
+            return Err(TrackError::SizeMismatch {
+                what: format!("frame {index}"),
+                expected_width: self.width,
+                expected_height: self.height,
+                found_width: frame.width(),
+                found_height: frame.height(),
+            });
+        }
+        self.check_depth(depth.as_ref())?;
+        let depth = depth.as_ref();
+        let n = self.markers.len();
+        let (width, height) = (self.width, self.height);
+        for m in &mut self.markers {
+            m.predict(&self.config);
+            m.gate_var = m.filter.innovation_var(MEASUREMENT_PX);
+        }
+        let predictions: Vec<Point2<f64>> = self
+            .markers
+            .iter()
+            .map(|m| clamp_into(m.filter.position, width, height))
+            .collect();
+
+        // Quick pass: near the prediction, the candidate that fits best.
+        let mut quick: Vec<Option<Scored>> = Vec::with_capacity(n);
+        let mut rejected: Vec<Vec<(Point2<f64>, PixelRect)>> = Vec::with_capacity(n);
+        for i in 0..n {
+            let (best, others) = self.quick_pass(frame, depth, i, &predictions);
+            quick.push(best);
+            rejected.push(others);
+        }
+
+        // Accept confident results in the normal gate, nearest to their prediction first.
+        let d2: Vec<f64> = (0..n)
+            .map(|i| {
+                let m = &self.markers[i];
+                quick[i].as_ref().map_or(f64::INFINITY, |q| {
+                    (q.measured.center - m.filter.position).norm_squared() / m.gate_var
+                })
+            })
+            .collect();
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| d2[a].total_cmp(&d2[b]));
+        let mut results: Vec<Option<(Measured, TrackStatus, Option<f64>)>> = vec![None; n];
+        let mut claimed: Vec<(usize, PixelRect, Point2<f64>)> = Vec::new();
+        let mut undecided = Vec::new();
+        for &i in &order {
+            let m = &self.markers[i];
+            let Some(q) = quick[i] else {
+                undecided.push(i);
+                continue;
+            };
+            if !self.config.recovery {
+                results[i] = Some((q.measured, TrackStatus::Tracked, q.context));
+                continue;
+            }
+            let c = q.measured.center;
+            // Identity is in doubt only after a jump of more than half a window, the reach of
+            // plain mean-shift: a slower marker cannot have swapped with a look-alike.
+            let jumped = (c - m.last_center).norm() > 0.5 * window_px(m);
+            let familiar =
+                !jumped || !m.context_informative() || q.context.is_none_or(|v| m.familiar(v));
+            let accept = m.misses == 0
+                && q.measured.confidence >= self.config.min_confidence
+                && m.typical(q.measured.confidence)
+                && d2[i] <= GATE_CHI2
+                && !m.on_distractor(c)
+                && familiar
+                && (!crowded(&self.markers, i)
+                    || m.swing
+                        .line()
+                        .is_none_or(|l| l.offset(c).abs() <= LINE_ACCEPT_SPREADS))
+                && !(self.config.exclusive
+                    && (taken(&self.markers, i, c, &claimed)
+                        || nearer_to_other(&self.markers, i, c, &predictions)));
+            if accept {
+                claimed.push((i, q.measured.holds, c));
+                results[i] = Some((q.measured, TrackStatus::Tracked, q.context));
+            } else {
+                undecided.push(i);
+            }
+        }
+
+        // Detection in the opened gates, then one joint assignment.
+        if !undecided.is_empty() {
+            let assigned = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
+            for (&i, found) in undecided.iter().zip(assigned) {
+                results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
+            }
+        }
+
+        // What a found marker saw near it and was not is a look-alike to remember, unless it
+        // is some marker's place.
+        let places_now: Vec<Point2<f64>> = predictions
+            .iter()
+            .copied()
+            .chain(results.iter().flatten().map(|r| r.0.center))
+            .collect();
+        for (i, result) in results.iter().enumerate() {
+            let Some((q, _, _)) = result else { continue };
+            let side = window_px(&self.markers[i]);
+            for &(p, bounds) in &rejected[i] {
+                if (p - q.center).norm() > side && places_now.iter().all(|c| (c - p).norm() > side)
+                {
+                    remember_distractor(&mut self.markers[i], p, bounds, side);
+                }
+            }
+        }
+
+        // How alike the markers found in this frame and the last have moved.
+        let moved: Vec<Option<Vector2<f64>>> = results
+            .iter()
+            .zip(&self.markers)
+            .map(|(r, m)| {
+                r.as_ref()
+                    .filter(|_| m.last_status.found())
+                    .map(|(q, _, _)| q.center - m.last_center)
+            })
+            .collect();
+        for (a, da) in moved.iter().enumerate() {
+            for (b, db) in moved.iter().enumerate().skip(a + 1) {
+                if let (Some(da), Some(db)) = (da, db) {
+                    self.coherence[a * n + b].learn(*da, *db);
+                    self.coherence[b * n + a] = self.coherence[a * n + b];
+                }
+            }
+        }
+
+        // A marker not found where a found marker of its look now is has merged with it (two
+        // markers of one colour crossing): it moves with that marker until they part, rather
+        // than coasting away and being lost.
+        let merged: Vec<bool> = (0..n)
+            .map(|i| {
+                let m = &self.markers[i];
+                let reach = MERGED_WINDOWS * window_px(m);
+                results[i].is_none()
+                    && (0..n).any(|j| {
+                        j != i
+                            && same_look(m, &self.markers[j])
+                            && results[j]
+                                .as_ref()
+                                .is_some_and(|(q, _, _)| (q.center - predictions[i]).norm() < reach)
+                    })
+            })
+            .collect();
+
+        let frame_index = self.tracks.first().map_or(0, |t| t.observations.len()) as u64;
+        for (i, result) in results.into_iter().enumerate() {
+            let m = &mut self.markers[i];
+            let observation = match result {
+                Some((q, status, context)) => {
+                    let status = if status == TrackStatus::Tracked && !m.last_status.found() {
+                        TrackStatus::Recovered
+                    } else {
+                        status
+                    };
+                    let o = m.found(q, status, &self.config, depth, frame_index);
+
+                    m.learn_appearance(q.confidence, context);
+                    if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
+                        t.update(frame, q.center, CONTEXT_RATE, &mut self.patch);
+                    }
+                    if let Some(t) = m.template.as_mut()
+                        && status == TrackStatus::Tracked
+                        && q.confidence >= TEMPLATE_UPDATE_CONFIDENCE
+                    {
+                        t.update(frame, q.center, TEMPLATE_RATE, &mut self.patch);
+                    }
+                    o
+                }
+                None if merged[i] => m.merged((width, height)),
+                None => m.missed(&self.config, (width, height)),
+            };
+            self.tracks[i].observations.push(observation);
+        }
+        if let Some(p) = self.previous.as_mut() {
+            p.copy_from_slice(frame);
+        }
+        Ok(())
+    }
+
+    /// Set a marker's centre in the latest frame by hand (the paper's first remedy); its
+    /// observation becomes [`TrackStatus::Set`] with confidence 1 and tracking continues from
+    /// there, with the motion history cleared.
+    ///
+    /// # Errors
+    /// [`TrackError::UnknownMarker`]; [`TrackError::InvalidParameter`] for a centre that is
+    /// not finite or lies outside the image.
+    pub fn set_center(&mut self, id: &str, center: Point2<f64>) -> Result<()> {
+        let Some(i) = self.markers.iter().position(|m| m.id == id) else {
+            return Err(TrackError::UnknownMarker { id: id.to_string() });
+        };
+        let inside = center.x.is_finite()
+            && center.y.is_finite()
+            && (-0.5..f64::from(self.width) - 0.5).contains(&center.x)
+            && (-0.5..f64::from(self.height) - 0.5).contains(&center.y);
+        if !inside {
+            return Err(TrackError::param(
+                "center",
+                format!(
+                    "({}, {}) is not inside the {}x{} image",
+                    center.x, center.y, self.width, self.height
+                ),
+            ));
+        }
+        let m = &mut self.markers[i];
+        let side = window_px(m);
+        m.filter = Kalman::new(center, MEASUREMENT_PX, 0.1 * side);
+        m.swing.clear();
+        m.acceleration_px = ACCELERATION_MIN_PX;
+        m.last_center = center;
+        m.misses = 0;
+        m.last_status = TrackStatus::Set;
+        let observation = Observation {
+            center: Some(center),
+            window: PixelRect::centered_at(center, m.size.0, m.size.1),
+            status: TrackStatus::Set,
+            confidence: 1.0,
+        };
+        if let Some(last) = self.tracks[i].observations.last_mut() {
+            *last = observation;
+        }
+        Ok(())
+    }
+
+    /// Frames processed so far (the first frame included).
+    pub fn frames(&self) -> usize {
+        self.tracks.first().map_or(0, |t| t.observations.len())
+    }
+
+    /// The tracks, in the order the markers were given.
+    pub fn tracks(&self) -> &[Track] {
+        &self.tracks
+    }
+
+    /// The tracks, consuming the tracker.
+    pub fn into_tracks(self) -> Vec<Track> {
+        self.tracks
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &TrackerConfig {
+        &self.config
+    }
+
+    /// Frame size in pixels.
+    pub fn frame_size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+}

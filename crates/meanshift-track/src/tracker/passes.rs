@@ -1,0 +1,335 @@
+//! The two passes of a frame: mean-shift from each prediction (the quick pass), then
+//! detection and joint assignment for every marker the quick pass did not settle.
+
+use super::*;
+
+impl Tracker {
+    /// Marker `i`'s quick pass: its candidates near the prediction (the gray template's
+    /// matches, or the blobs of its weights), scored together; the best, and the places of
+    /// the others. Plain mean-shift's mode without recovery, or as the fallback of a
+    /// colour model when no blob fits (at half its confidence).
+    pub(super) fn quick_pass(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        i: usize,
+        predictions: &[Point2<f64>],
+    ) -> (Option<Scored>, Vec<(Point2<f64>, PixelRect)>) {
+        let frame_side = f64::from(self.width.max(self.height));
+        let m = &self.markers[i];
+        let pred = predictions[i];
+        let (w, h) = m.size;
+        let side = window_px(m);
+        let wide = m.gate_var + manoeuvre_var(&self.config, side, m.misses, frame_side);
+        let found: Vec<Measured>;
+        let mut fallback = None;
+        if let (Some(t), true) = (&m.template, self.config.recovery) {
+            let radius = (GATE_CHI2 * m.gate_var)
+                .sqrt()
+                .clamp(0.25 * side, 1.5 * side);
+            found = template_candidates(t, m, frame, pred, radius, 4, &mut self.patch);
+        } else {
+            let region = PixelRect::centered_at(pred, w, h).grown(w, h);
+            let masks = m.static_masks(region, pred);
+            fill(
+                &mut self.region,
+                &self.config,
+                m,
+                frame,
+                self.previous.as_ref(),
+                depth,
+                region,
+                &masks,
+            );
+            let mode = self.region.locate(
+                &m.model,
+                &self.config.criteria,
+                m.reference.mass,
+                pred,
+                m.size,
+            );
+            let plain_mode = plain(&self.region, mode);
+            if !self.config.recovery {
+                let scored = Scored {
+                    measured: plain_mode,
+                    context: None,
+                    cost: 0.0,
+                };
+                return (Some(scored), Vec::new());
+            }
+            let others = sharing_predictions(&self.markers, i, predictions);
+            found = candidates_in(&mut self.region, &mut self.labeler, m, Some(pred), &others);
+            fallback = Some(Measured {
+                confidence: plain_mode.confidence * 0.5,
+                ..plain_mode
+            });
+        }
+        // Surroundings tell candidates apart only when there is a choice; the chosen one's
+        // are measured below in any case.
+        let ambiguous = found.len() > 1 && m.context_informative();
+        let with_context: Vec<(Measured, Option<f64>)> = found
+            .into_iter()
+            .map(|c| {
+                let context = ambiguous
+                    .then(|| {
+                        m.context
+                            .as_ref()
+                            .map(|t| t.ncc_near(frame, c.center, &mut self.patch))
+                    })
+                    .flatten();
+                (c, context)
+            })
+            .collect();
+        let mut scored = m.score(&with_context, wide, crowded(&self.markers, i));
+        scored.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+        let others = scored
+            .iter()
+            .skip(1)
+            .map(|c| (c.measured.center, c.measured.holds))
+            .collect();
+        let mut best = scored.into_iter().next().or_else(|| {
+            fallback.map(|f| Scored {
+                measured: f,
+                context: None,
+                cost: f64::INFINITY,
+            })
+        });
+        if let Some(b) = best.as_mut()
+            && b.context.is_none()
+        {
+            b.context = m
+                .context
+                .as_ref()
+                .map(|t| t.ncc_near(frame, b.measured.center, &mut self.patch));
+        }
+        (best, others)
+    }
+
+    /// Open the gates of `undecided` markers, find candidates in them (other markers'
+    /// places masked), and assign candidates (with each marker's quick-pass measurement) to
+    /// markers jointly. Per undecided marker: its measurement and context correlation, or
+    /// `None`.
+    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
+    pub(super) fn detect_and_assign(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        undecided: &[usize],
+        claimed: &[(usize, PixelRect, Point2<f64>)],
+        quick: &[Option<Scored>],
+    ) -> Vec<Option<(Measured, Option<f64>)>> {
+        let config = &self.config;
+        let (width, height) = (self.width, self.height);
+        let frame_side = f64::from(width.max(height));
+        let masks: Vec<PixelRect> = if config.exclusive {
+            claimed.iter().map(|c| c.1).collect()
+        } else {
+            Vec::new()
+        };
+        let all: Vec<Point2<f64>> = self.markers.iter().map(|m| m.filter.position).collect();
+        let mut candidates: Vec<Candidate> = Vec::new();
+        let mut seen: Vec<Vec<(Point2<f64>, PixelRect)>> = vec![Vec::new(); undecided.len()];
+        for (row, &i) in undecided.iter().enumerate() {
+            let m = &self.markers[i];
+            let side = window_px(m);
+            // The miss may be a manoeuvre (a release): the search opens to the search radius,
+            // and wider while the marker stays unseen, up to the whole frame. The filter takes
+            // the manoeuvre only if a candidate is taken.
+            let wide = m.gate_var + manoeuvre_var(config, side, m.misses, frame_side);
+            let pred = clamp_into(m.filter.position, width, height);
+            // A marker that has left the frame comes back across the border near where it
+            // left: its gate is the normal one around the border point, widened by a window
+            // per missed frame, not the whole frame (where it would take whatever looks like
+            // it on the far side).
+            // (Only a marker last seen near the border has left: one predicted out of the
+            // frame from the middle of it has a wrong velocity, and is searched everywhere.)
+            let border_gap = {
+                let c = m.last_center;
+                c.x.min(c.y)
+                    .min(f64::from(width) - c.x)
+                    .min(f64::from(height) - c.y)
+            };
+            let outside = (m.filter.position - pred).norm() > 0.5 * side
+                && border_gap < BORDER_WINDOWS * side + m.filter.velocity.norm();
+            let border_px = (GATE_CHI2 * m.gate_var).sqrt() + (m.misses as f64 + 1.0) * side;
+            let gate_px = if outside {
+                (GATE_CHI2 * wide).sqrt().min(border_px)
+            } else {
+                (GATE_CHI2 * wide).sqrt().min(2.0 * frame_side)
+            };
+            // The quick pass's own measurement competes too (a marker half behind a twig).
+            let mut found: Vec<Measured> = quick[i].iter().map(|q| q.measured).collect();
+            if let Some(t) = &m.template {
+                found.extend(template_candidates(
+                    t,
+                    m,
+                    frame,
+                    pred,
+                    gate_px,
+                    MAX_CANDIDATES,
+                    &mut self.patch,
+                ));
+            } else {
+                let (w, h) = m.size;
+                let reach = gate_px.ceil() as i32 + w.max(h);
+                let region = PixelRect::centered_at(pred, w, h).grown(reach, reach);
+                let mut masks = masks.clone();
+                masks.extend(m.static_masks(region, pred));
+                fill(
+                    &mut self.region,
+                    config,
+                    m,
+                    frame,
+                    self.previous.as_ref(),
+                    depth,
+                    region,
+                    &masks,
+                );
+                let others = sharing_predictions(&self.markers, i, &all);
+                found.extend(
+                    candidates_in(&mut self.region, &mut self.labeler, m, Some(pred), &others)
+                        .into_iter()
+                        .take(MAX_CANDIDATES),
+                );
+            }
+            if outside {
+                found.retain(|c| (c.center - pred).norm() <= gate_px);
+            }
+            let mut with_context = Vec::with_capacity(found.len());
+            for c in found {
+                seen[row].push((c.center, c.holds));
+                if c.confidence < config.min_confidence
+                    || (config.exclusive && taken(&self.markers, i, c.center, claimed))
+                {
+                    continue;
+                }
+                let context = m
+                    .context
+                    .as_ref()
+                    .filter(|_| m.context_informative())
+                    .map(|t| t.ncc_near(frame, c.center, &mut self.patch));
+                with_context.push((c, context));
+            }
+            let previous = self.previous.as_ref();
+            for mut s in m.score(&with_context, wide, crowded(&self.markers, i)) {
+                if let Some(prev) = previous
+                    && m.misses == 0
+                    && m.template.is_none()
+                    && (s.measured.center - m.last_center).norm() > window_px(m)
+                    && changed_share(frame, prev, s.measured.holds) < STATIC_SHARE
+                {
+                    s.cost += STATIC_JUMP_COST;
+                }
+                candidates.push(Candidate {
+                    marker: i,
+                    measured: s.measured,
+                    cost: s.cost,
+                    context: s.context,
+                });
+            }
+        }
+        // Columns: places, so that markers of one colour compete for the same blob.
+        let mut places: Vec<(Point2<f64>, f64)> = Vec::new();
+        let mut column = Vec::with_capacity(candidates.len());
+        for c in &candidates {
+            let side = window_px(&self.markers[c.marker]);
+            let same = places
+                .iter()
+                .position(|(p, s)| (p - c.measured.center).norm() < PLACE_SHARE * side.min(*s));
+            column.push(same.unwrap_or_else(|| {
+                places.push((c.measured.center, side));
+                places.len() - 1
+            }));
+        }
+        let rows = undecided.len();
+        let cols = places.len();
+        let mut cost = vec![f64::INFINITY; rows * cols];
+        // A place inside another undecided marker's normal gate is that marker's by motion:
+        // a colour marker that could reach it only by a manoeuvre pays for taking it. (Gray
+        // targets in rows are guided by their neighbours instead, which this would fight.)
+        let in_gate = |i: usize, p: Point2<f64>| {
+            let m = &self.markers[i];
+            (p - m.filter.position).norm_squared() <= GATE_CHI2 * m.gate_var
+        };
+        for (c, &j) in candidates.iter().zip(&column) {
+            if let Some(r) = undecided.iter().position(|&i| i == c.marker) {
+                let p = places[j].0;
+                let owned = self.markers[c.marker].template.is_none()
+                    && !in_gate(c.marker, p)
+                    && undecided.iter().any(|&o| {
+                        o != c.marker
+                            && same_look(&self.markers[o], &self.markers[c.marker])
+                            && in_gate(o, p)
+                    });
+                let extra = if owned { OWNED_COST } else { 0.0 };
+                let slot = &mut cost[r * cols + j];
+                *slot = slot.min(c.cost + extra);
+            }
+        }
+        let anchors: Vec<Anchor> = claimed
+            .iter()
+            .map(|&(j, _, c)| {
+                let last = self.markers[j].last_center;
+                Anchor {
+                    marker: j,
+                    last,
+                    moved: c - last,
+                }
+            })
+            .collect();
+        let lasts: Vec<(usize, Point2<f64>, f64)> = undecided
+            .iter()
+            .map(|&i| (i, self.markers[i].last_center, window_px(&self.markers[i])))
+            .collect();
+        let places_at: Vec<Point2<f64>> = places.iter().map(|p| p.0).collect();
+        let n = self.markers.len();
+        let coherent = |a: usize, b: usize| self.coherence[a * n + b].coherent();
+        let assignment = assign_anchored(&cost, cols, &lasts, &places_at, anchors, &coherent);
+        let chosen: Vec<Option<(Measured, Option<f64>)>> = undecided
+            .iter()
+            .zip(&assignment)
+            .map(|(&i, j)| {
+                let j = (*j)?;
+                let best = candidates
+                    .iter()
+                    .zip(&column)
+                    .filter(|(c, col)| c.marker == i && **col == j)
+                    .min_by(|a, b| a.0.cost.total_cmp(&b.0.cost))?;
+                Some((best.0.measured, best.0.context))
+            })
+            .collect();
+        // A marker found far outside its normal gate has manoeuvred: the filter takes the
+        // manoeuvre, so the measurement sets the new velocity.
+        for (&i, pick) in undecided.iter().zip(&chosen) {
+            let m = &mut self.markers[i];
+            if let Some((q, _)) = pick
+                && (q.center - m.filter.position).norm_squared() > GATE_CHI2 * m.gate_var
+            {
+                let side = window_px(m);
+                let sigma = manoeuvre_var(config, side, m.misses, frame_side).sqrt();
+                m.filter.manoeuvre(sigma);
+            }
+        }
+        // What a found marker saw in its gate and was not is a look-alike to remember,
+        // unless it is some marker's place.
+        let places_now: Vec<Point2<f64>> = self
+            .markers
+            .iter()
+            .map(|m| m.filter.position)
+            .chain(claimed.iter().map(|c| c.2))
+            .chain(chosen.iter().flatten().map(|c| c.0.center))
+            .collect();
+        for ((&i, pick), blobs) in undecided.iter().zip(&chosen).zip(seen) {
+            let Some((picked, _)) = pick else { continue };
+            let side = window_px(&self.markers[i]);
+            let near_marker = |p: &Point2<f64>| places_now.iter().any(|q| (q - p).norm() < side);
+            let m = &mut self.markers[i];
+            for (p, bounds) in blobs {
+                if (p - picked.center).norm() > side && !near_marker(&p) {
+                    remember_distractor(m, p, bounds, side);
+                }
+            }
+        }
+        chosen
+    }
+}

@@ -1,0 +1,332 @@
+//! One marker's state between frames: its motion filter, appearance statistics, swing
+//! line and remembered look-alikes, and how a frame's outcome updates them.
+
+use super::*;
+
+impl MarkerState {
+    /// Whether the surroundings tell this marker apart: they correlate well with
+    /// themselves from frame to frame (a textured background, a fork, a target board), not
+    /// only with noise.
+    pub(super) fn context_informative(&self) -> bool {
+        self.context.is_some() && self.context_level >= CONTEXT_MIN_LEVEL
+    }
+
+    /// The costs of this marker's candidates (each with its context correlation), scored
+    /// together; candidates outside the wide gate are dropped. A cost is a negative
+    /// log-likelihood relative to a perfect candidate at the prediction:
+    /// - motion: the mixture of the normal gate and, with prior [`MANOEUVRE_PRIOR`], a
+    ///   manoeuvre of variance `wide`;
+    /// - appearance: `-ln(confidence)`, plus the shortfall from the best candidate's
+    ///   confidence in units of how much this marker's own confidence varies from frame to
+    ///   frame (capped), and the same for the surroundings' correlation when they are
+    ///   informative; relative to the best candidate, so that a marker whose look changes as a
+    ///   whole (blur, light) is not locked out;
+    /// - a static look-alike's penalty;
+    /// - the offset from the marker's swing line: with `use_line` (a same-look marker is
+    ///   near) as it is, otherwise beyond the least offset among the candidates.
+    pub(super) fn score(
+        &self,
+        candidates: &[(Measured, Option<f64>)],
+        wide: f64,
+        use_line: bool,
+    ) -> Vec<Scored> {
+        let best_conf = candidates
+            .iter()
+            .map(|c| c.0.confidence)
+            .fold(0.0, f64::max);
+        let best_context = candidates
+            .iter()
+            .filter_map(|c| c.1)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let conf_sigma = self.confidence_var.sqrt().max(CONFIDENCE_SIGMA_MIN);
+        let context_sigma = self.context_var.sqrt().max(CONTEXT_SIGMA_MIN);
+        let informative = self.context_informative();
+        // With a same-look marker near, the offset counts as it is; alone, only as far as
+        // it exceeds the nearest candidate's (it tells candidates apart, but does not hold a
+        // marker whose release swings beside the line of its pull away from its only one).
+        let line = self.swing.line();
+        let least_offset = match (line, use_line) {
+            (Some(l), false) => candidates
+                .iter()
+                .map(|c| l.offset(c.0.center).abs())
+                .fold(f64::INFINITY, f64::min),
+            _ => 0.0,
+        };
+        candidates
+            .iter()
+            .filter_map(|&(measured, context)| {
+                let r2 = (measured.center - self.filter.position).norm_squared();
+                if r2 > GATE_CHI2 * wide.max(self.gate_var) {
+                    return None;
+                }
+                let conf = measured.confidence;
+                let appearance = -conf.max(1e-3).ln()
+                    + (0.5 * ((best_conf - conf) / conf_sigma).powi(2)).min(APPEARANCE_CAP);
+                let surroundings = match context {
+                    Some(c) if informative => {
+                        (0.5 * ((best_context - c) / context_sigma).powi(2)).min(CONTEXT_CAP)
+                    }
+                    _ => 0.0,
+                };
+                let penalty = if self.on_distractor(measured.center) {
+                    DISTRACTOR_COST
+                } else {
+                    0.0
+                };
+                // A marker that swings along a line stays near it: a same-look marker
+                // crossing its path is off the line where the paths are apart.
+                let off_line = line.map_or(0.0, |l| {
+                    let o = l.offset(measured.center).abs();
+                    (0.5 * (o * o - least_offset * least_offset)).min(LINE_COST_CAP)
+                });
+                Some(Scored {
+                    measured,
+                    context,
+                    cost: motion_cost(r2, self.gate_var, wide)
+                        + appearance
+                        + surroundings
+                        + penalty
+                        + off_line,
+                })
+            })
+            .collect()
+    }
+
+    /// Whether a confidence is within what this marker usually shows (a blurred or paler
+    /// marker may be less alike, so the check is loose: [`TYPICAL_SIGMAS`] spreads). A
+    /// measurement that is not goes to detection, where it competes with other candidates.
+    pub(super) fn typical(&self, confidence: f64) -> bool {
+        let sigma = self.confidence_var.sqrt().max(CONFIDENCE_SIGMA_MIN);
+        confidence >= self.confidence_mean - TYPICAL_SIGMAS * sigma
+    }
+
+    /// Whether a context correlation `c` is within what this marker usually shows.
+    pub(super) fn familiar(&self, c: f64) -> bool {
+        let sigma = self.context_var.sqrt().max(CONTEXT_SIGMA_MIN);
+        c >= self.context_level - CONTEXT_DROP.max(3.0 * sigma)
+    }
+
+    /// Learn how this marker's confidence and context correlation vary (running means and
+    /// variances of the frames it was found in).
+    pub(super) fn learn_appearance(&mut self, confidence: f64, context: Option<f64>) {
+        let d = confidence - self.confidence_mean;
+        self.confidence_mean += APPEARANCE_RATE * d;
+        self.confidence_var += APPEARANCE_RATE * (d * d - self.confidence_var);
+        if let Some(c) = context {
+            let d = c - self.context_level;
+            self.context_level += APPEARANCE_RATE * d;
+            self.context_var += APPEARANCE_RATE * (d * d - self.context_var);
+        }
+    }
+
+    /// True when `at` is on a static look-alike of this marker.
+    pub(super) fn on_distractor(&self, at: Point2<f64>) -> bool {
+        let side = window_px(self);
+        self.distractors
+            .iter()
+            .any(|d| d.seen >= 2 && (d.at - at).norm() < (DISTRACTOR_RADIUS * side).max(2.0))
+    }
+
+    /// The boxes of this marker's static look-alikes in `region` that it is not predicted to
+    /// be on: their pixels do not count, so that a marker passing one is not pulled onto it.
+    pub(super) fn static_masks(&self, region: PixelRect, pred: Point2<f64>) -> Vec<PixelRect> {
+        let (hw, hh) = (self.size.0 / 4, self.size.1 / 4);
+        self.distractors
+            .iter()
+            .filter(|d| d.seen >= 2 && d.bounds.intersect(&region).area() > 0)
+            .filter(|d| {
+                let b = d.bounds.grown(hw, hh);
+                !(pred.x >= f64::from(b.x)
+                    && pred.y >= f64::from(b.y)
+                    && pred.x < b.right() as f64
+                    && pred.y < b.bottom() as f64)
+            })
+            .map(|d| d.bounds)
+            .collect()
+    }
+
+    /// One frame ahead.
+    pub(super) fn predict(&mut self, config: &TrackerConfig) {
+        match config.motion {
+            MotionModel::Static => {
+                self.filter.stop(0.0);
+                self.filter.predict(self.acceleration_px);
+            }
+            MotionModel::ConstantVelocity { .. } => {
+                let (p, v) = (self.filter.position, self.filter.velocity);
+                self.filter.predict(self.acceleration_px);
+                // A swing turns: the learnt acceleration bends the prediction.
+                if let Some(a) = self.swing.acceleration(p, v) {
+                    self.filter.position += a;
+                    self.filter.velocity += a;
+                }
+            }
+        }
+    }
+
+    /// Record a measurement.
+    pub(super) fn found(
+        &mut self,
+        q: Measured,
+        status: TrackStatus,
+        config: &TrackerConfig,
+        depth: Option<&DepthView<'_>>,
+        frame: u64,
+    ) -> Observation {
+        let innovation = (q.center - self.filter.position).norm_squared();
+        self.filter.update(q.center, MEASUREMENT_PX);
+        let side = window_px(self);
+        if self.misses >= STOP_AFTER_MISSES && innovation > side * side {
+            // Found again after frames of coasting, a window or more from where the coasting
+            // put it: that jump is not a velocity (it made a marker found again at the end of
+            // a swing fly off the frame), and where the swing is now in its cycle is unknown.
+            self.filter.stop(side);
+        }
+        if let MotionModel::ConstantVelocity {
+            min_acceleration_px,
+        } = config.motion
+        {
+            // The model expects as much change as it has recently seen; a recovery after a
+            // miss says little about the acceleration, and is left out.
+            if self.misses == 0 {
+                let a2 = self.acceleration_px * self.acceleration_px;
+                let next = a2 + ACCELERATION_RATE * (0.5 * innovation - a2);
+                self.acceleration_px = next.sqrt().max(min_acceleration_px);
+            }
+        } else {
+            self.filter.stop(0.0);
+        }
+        if config.window == WindowMode::Adaptive
+            && let Some(m) = q.moments
+            && m.m00 > 0.0
+        {
+            let (w, h) = Axes::of(&m).window_size();
+            let (w0, h0) = self.init_size;
+            self.size = (
+                w.clamp((w0 / 2).max(1), w0 * 2),
+                h.clamp((h0 / 2).max(1), h0 * 2),
+            );
+        }
+        if let Some(d) = depth
+            && let Some(dm) = window_depth(d, q.window)
+        {
+            self.depth_m = Some(dm);
+        }
+        self.last_center = q.center;
+        self.misses = 0;
+        self.last_status = status;
+        self.swing.record(frame, q.center);
+        Observation {
+            center: Some(q.center),
+            window: q.window,
+            status,
+            confidence: q.confidence,
+        }
+    }
+
+    /// No measurement this frame: coast, then lose.
+    /// Not found, and merged with a marker of the same look: it coasts on its own motion
+    /// (the two cross) and the frame does not count as a miss, so that it is neither given
+    /// up while hidden in the other's blob nor looked for far away, and is taken up again
+    /// as soon as it shows.
+    pub(super) fn merged(&mut self, (width, height): (u32, u32)) -> Observation {
+        self.filter.velocity *= COAST_VELOCITY_DECAY;
+        let pred = clamp_into(self.filter.position, width, height);
+        self.last_status = TrackStatus::Predicted;
+        Observation {
+            center: Some(pred),
+            window: PixelRect::centered_at(pred, self.size.0, self.size.1),
+            status: TrackStatus::Predicted,
+            confidence: 0.0,
+        }
+    }
+
+    pub(super) fn missed(
+        &mut self,
+        config: &TrackerConfig,
+        (width, height): (u32, u32),
+    ) -> Observation {
+        self.misses += 1;
+        self.filter.velocity *= COAST_VELOCITY_DECAY;
+        let pred = clamp_into(self.filter.position, width, height);
+        let lost = self.misses > config.max_coast_frames;
+        self.last_status = if lost {
+            TrackStatus::Lost
+        } else {
+            TrackStatus::Predicted
+        };
+        Observation {
+            center: (!lost).then_some(pred),
+            window: PixelRect::centered_at(pred, self.size.0, self.size.1),
+            status: self.last_status,
+            confidence: 0.0,
+        }
+    }
+}
+
+/// Whether two markers look alike: one appearance model and colours within
+/// [`SAME_LOOK_RGB`] (gray targets: any two).
+pub(super) fn same_look(a: &MarkerState, b: &MarkerState) -> bool {
+    let d2: f32 = a
+        .colour
+        .iter()
+        .zip(&b.colour)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum();
+    d2 <= SAME_LOOK_RGB * SAME_LOOK_RGB
+}
+
+/// Whether a marker of the same look is predicted within [`CROWD_WINDOWS`] windows of marker
+/// `i`: only then can the two be confused, and only then does the swing line count (alone,
+/// a marker whose release swings beside the line of its pull must not be held to it).
+pub(super) fn crowded(markers: &[MarkerState], i: usize) -> bool {
+    let m = &markers[i];
+    let reach = CROWD_WINDOWS * window_px(m);
+    markers.iter().enumerate().any(|(j, o)| {
+        j != i
+            && same_look(m, o)
+            && (o.filter.position - m.filter.position).norm()
+                < reach.max(CROWD_WINDOWS * window_px(o))
+    })
+}
+
+/// Window size (the larger side) of a marker, pixels.
+pub(super) fn window_px(m: &MarkerState) -> f64 {
+    f64::from(m.size.0.max(m.size.1))
+}
+
+/// Remember a look-alike at `p`: seen again where it was (within [`STATIC_PX`]), it counts
+/// once more; seen elsewhere nearby (partly covered, or moving), its count halves, and below
+/// 2 it starts over there. The oldest is forgotten past the limit.
+pub(super) fn remember_distractor(
+    m: &mut MarkerState,
+    p: Point2<f64>,
+    bounds: PixelRect,
+    side: f64,
+) {
+    if let Some(d) = m
+        .distractors
+        .iter_mut()
+        .find(|d| (d.at - p).norm() < (DISTRACTOR_RADIUS * side).max(2.0))
+    {
+        if (d.at - p).norm() <= STATIC_PX {
+            d.seen = d.seen.saturating_add(1).min(MAX_SEEN);
+        } else {
+            d.seen /= 2;
+            if d.seen < 2 {
+                d.at = p;
+                d.bounds = bounds;
+                d.seen = 1;
+            }
+        }
+        return;
+    }
+    if m.distractors.len() >= MAX_DISTRACTORS {
+        m.distractors.remove(0);
+    }
+    m.distractors.push(Distractor {
+        at: p,
+        bounds,
+        seen: 1,
+    });
+}
