@@ -13,7 +13,7 @@ use nalgebra::{Isometry3, Vector3};
 
 use crate::capture::{Capture, DroppedMarker, MarkerSpec};
 use crate::error::{Result, StageExt};
-use crate::quality::{BranchQuality, judge_fit, judge_paper, judge_track};
+use crate::quality::{BranchQuality, judge_fit, judge_identity, judge_paper, judge_track};
 
 /// The modes of one marked branch.
 #[derive(Debug, Clone)]
@@ -74,7 +74,7 @@ impl BranchResult {
 
     /// The trust flags from the notes: an estimate is trusted when it exists and no note
     /// about it (or about the track it came from) speaks against it.
-    fn settle_trust(&mut self) {
+    pub(crate) fn settle_trust(&mut self) {
         let distrusts = |prefixes: &[&str]| {
             self.notes
                 .iter()
@@ -302,6 +302,15 @@ pub fn analyse(
                 .iter()
                 .position(|id| *id == b.child)
                 .map(|k| capture.positions_m[k].as_slice()),
+        );
+        judge_identity(
+            &mut result,
+            &times,
+            (w0, w1),
+            track.map(|t| t.positions_m.as_slice()),
+            trajectories
+                .marker(&b.parent)
+                .map(|t| t.positions_m.as_slice()),
         );
         result.settle_trust();
         out.push(result);

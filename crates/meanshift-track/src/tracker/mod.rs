@@ -295,6 +295,11 @@ struct Candidate {
     context: Option<f64>,
 }
 
+/// A marker's measurement in a frame, its status and its surroundings' correlation.
+type Found = (Measured, TrackStatus, Option<f64>);
+/// A place claimed in a frame: the marker, the pixels it holds, its centre.
+type Claim = (usize, PixelRect, Point2<f64>);
+
 /// The tracker. Create it on the first frame with the users' windows, then call
 /// [`Tracker::update`] once per frame.
 #[derive(Debug)]
@@ -427,23 +432,8 @@ impl Tracker {
     /// [`TrackError::EmptyImage`] for an empty frame; [`TrackError::SizeMismatch`] when the
     /// frame (or depth map) differs in size from the first frame. The tracker is unchanged
     /// by a failed call.
-    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
     pub fn update(&mut self, frame: &RgbImage, depth: Option<DepthView<'_>>) -> Result<()> {
-        let index = self.frames();
-        if frame.width() == 0 || frame.height() == 0 {
-            return Err(TrackError::EmptyImage {
-                what: format!("frame {index}"),
-            });
-        }
-        if frame.dimensions() != (self.width, self.height) {
-            return Err(TrackError::SizeMismatch {
-                what: format!("frame {index}"),
-                expected_width: self.width,
-                expected_height: self.height,
-                found_width: frame.width(),
-                found_height: frame.height(),
-            });
-        }
+        self.check_frame(frame)?;
         self.check_depth(depth.as_ref())?;
         let depth = depth.as_ref();
         let n = self.markers.len();
@@ -466,8 +456,54 @@ impl Tracker {
             quick.push(best);
             rejected.push(others);
         }
+        let (mut results, claimed, undecided) = self.accept_quick(&quick, &predictions);
 
-        // Accept confident results in the normal gate, nearest to their prediction first.
+        // Detection in the opened gates, then one joint assignment.
+        if !undecided.is_empty() {
+            let assigned = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
+            for (&i, found) in undecided.iter().zip(assigned) {
+                results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
+            }
+        }
+        self.learn_look_alikes(&results, &rejected, &predictions);
+        self.learn_coherence(&results);
+        let merged = self.merged_markers(&results, &predictions);
+        self.record(frame, depth, results, &merged);
+        if let Some(p) = self.previous.as_mut() {
+            p.copy_from_slice(frame);
+        }
+        Ok(())
+    }
+
+    /// A frame the tracker can take: not empty, the first frame's size.
+    fn check_frame(&self, frame: &RgbImage) -> Result<()> {
+        let index = self.frames();
+        if frame.width() == 0 || frame.height() == 0 {
+            return Err(TrackError::EmptyImage {
+                what: format!("frame {index}"),
+            });
+        }
+        if frame.dimensions() != (self.width, self.height) {
+            return Err(TrackError::SizeMismatch {
+                what: format!("frame {index}"),
+                expected_width: self.width,
+                expected_height: self.height,
+                found_width: frame.width(),
+                found_height: frame.height(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The quick pass's results accepted as `tracked` (confident, in the normal gate, alike,
+    /// on the swing line when crowded, nobody else's place), nearest to their prediction
+    /// first; the places they claim, and the markers left undecided for detection.
+    fn accept_quick(
+        &self,
+        quick: &[Option<Scored>],
+        predictions: &[Point2<f64>],
+    ) -> (Vec<Option<Found>>, Vec<Claim>, Vec<usize>) {
+        let n = self.markers.len();
         let d2: Vec<f64> = (0..n)
             .map(|i| {
                 let m = &self.markers[i];
@@ -478,8 +514,8 @@ impl Tracker {
             .collect();
         let mut order: Vec<usize> = (0..n).collect();
         order.sort_by(|&a, &b| d2[a].total_cmp(&d2[b]));
-        let mut results: Vec<Option<(Measured, TrackStatus, Option<f64>)>> = vec![None; n];
-        let mut claimed: Vec<(usize, PixelRect, Point2<f64>)> = Vec::new();
+        let mut results: Vec<Option<Found>> = vec![None; n];
+        let mut claimed: Vec<Claim> = Vec::new();
         let mut undecided = Vec::new();
         for &i in &order {
             let m = &self.markers[i];
@@ -509,7 +545,7 @@ impl Tracker {
                         .is_none_or(|l| l.offset(c).abs() <= LINE_ACCEPT_SPREADS))
                 && !(self.config.exclusive
                     && (taken(&self.markers, i, c, &claimed)
-                        || nearer_to_other(&self.markers, i, c, &predictions)));
+                        || nearer_to_other(&self.markers, i, c, predictions)));
             if accept {
                 claimed.push((i, q.measured.holds, c));
                 results[i] = Some((q.measured, TrackStatus::Tracked, q.context));
@@ -517,17 +553,17 @@ impl Tracker {
                 undecided.push(i);
             }
         }
+        (results, claimed, undecided)
+    }
 
-        // Detection in the opened gates, then one joint assignment.
-        if !undecided.is_empty() {
-            let assigned = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
-            for (&i, found) in undecided.iter().zip(assigned) {
-                results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
-            }
-        }
-
-        // What a found marker saw near it and was not is a look-alike to remember, unless it
-        // is some marker's place.
+    /// What a found marker saw near it and was not is a look-alike to remember, unless it
+    /// is some marker's place.
+    fn learn_look_alikes(
+        &mut self,
+        results: &[Option<Found>],
+        rejected: &[Vec<(Point2<f64>, PixelRect)>],
+        predictions: &[Point2<f64>],
+    ) {
         let places_now: Vec<Point2<f64>> = predictions
             .iter()
             .copied()
@@ -543,8 +579,11 @@ impl Tracker {
                 }
             }
         }
+    }
 
-        // How alike the markers found in this frame and the last have moved.
+    /// How alike the markers found in this frame and the last have moved.
+    fn learn_coherence(&mut self, results: &[Option<Found>]) {
+        let n = self.markers.len();
         let moved: Vec<Option<Vector2<f64>>> = results
             .iter()
             .zip(&self.markers)
@@ -562,11 +601,14 @@ impl Tracker {
                 }
             }
         }
+    }
 
-        // A marker not found where a found marker of its look now is has merged with it (two
-        // markers of one colour crossing): it moves with that marker until they part, rather
-        // than coasting away and being lost.
-        let merged: Vec<bool> = (0..n)
+    /// A marker not found where a found marker of its look now is has merged with it (two
+    /// markers of one colour crossing): it moves with that marker until they part, rather
+    /// than coasting away and being lost.
+    fn merged_markers(&self, results: &[Option<Found>], predictions: &[Point2<f64>]) -> Vec<bool> {
+        let n = self.markers.len();
+        (0..n)
             .map(|i| {
                 let m = &self.markers[i];
                 let reach = MERGED_WINDOWS * window_px(m);
@@ -579,8 +621,19 @@ impl Tracker {
                                 .is_some_and(|(q, _, _)| (q.center - predictions[i]).norm() < reach)
                     })
             })
-            .collect();
+            .collect()
+    }
 
+    /// Each marker's observation of this frame from its result (found, merged or missed),
+    /// with what a found marker teaches its appearance, surroundings and template.
+    fn record(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        results: Vec<Option<Found>>,
+        merged: &[bool],
+    ) {
+        let (width, height) = (self.width, self.height);
         let frame_index = self.tracks.first().map_or(0, |t| t.observations.len()) as u64;
         for (i, result) in results.into_iter().enumerate() {
             let m = &mut self.markers[i];
@@ -592,7 +645,6 @@ impl Tracker {
                         status
                     };
                     let o = m.found(q, status, &self.config, depth, frame_index);
-
                     m.learn_appearance(q.confidence, context);
                     if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
                         t.update(frame, q.center, CONTEXT_RATE, &mut self.patch);
@@ -610,10 +662,6 @@ impl Tracker {
             };
             self.tracks[i].observations.push(observation);
         }
-        if let Some(p) = self.previous.as_mut() {
-            p.copy_from_slice(frame);
-        }
-        Ok(())
     }
 
     /// Set a marker's centre in the latest frame by hand (the paper's first remedy); its

@@ -109,109 +109,158 @@ impl Tracker {
     /// places masked), and assign candidates (with each marker's quick-pass measurement) to
     /// markers jointly. Per undecided marker: its measurement and context correlation, or
     /// `None`.
-    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
     pub(super) fn detect_and_assign(
         &mut self,
         frame: &RgbImage,
         depth: Option<&DepthView<'_>>,
         undecided: &[usize],
-        claimed: &[(usize, PixelRect, Point2<f64>)],
+        claimed: &[Claim],
         quick: &[Option<Scored>],
     ) -> Vec<Option<(Measured, Option<f64>)>> {
-        let config = &self.config;
+        let mut candidates: Vec<Candidate> = Vec::new();
+        let mut seen: Vec<Vec<(Point2<f64>, PixelRect)>> = Vec::with_capacity(undecided.len());
+        for &i in undecided {
+            let (scored, blobs) = self.detect(frame, depth, i, claimed, quick[i]);
+            candidates.extend(scored);
+            seen.push(blobs);
+        }
+        let chosen = self.assign_places(&candidates, undecided, claimed);
+        // A marker found far outside its normal gate has manoeuvred: the filter takes the
+        // manoeuvre, so the measurement sets the new velocity.
+        let frame_side = f64::from(self.width.max(self.height));
+        for (&i, pick) in undecided.iter().zip(&chosen) {
+            let m = &mut self.markers[i];
+            if let Some((q, _)) = pick
+                && (q.center - m.filter.position).norm_squared() > GATE_CHI2 * m.gate_var
+            {
+                let side = window_px(m);
+                let sigma = manoeuvre_var(&self.config, side, m.misses, frame_side).sqrt();
+                m.filter.manoeuvre(sigma);
+            }
+        }
+        self.learn_gate_look_alikes(undecided, claimed, &chosen, seen);
+        chosen
+    }
+
+    /// Marker `i`'s search gate this frame: the miss may be a manoeuvre (a release), so the
+    /// search opens to the search radius, and wider while the marker stays unseen, up to the
+    /// whole frame. The filter takes the manoeuvre only if a candidate is taken.
+    fn gate(&self, i: usize) -> Gate {
+        let m = &self.markers[i];
         let (width, height) = (self.width, self.height);
         let frame_side = f64::from(width.max(height));
-        let masks: Vec<PixelRect> = if config.exclusive {
-            claimed.iter().map(|c| c.1).collect()
-        } else {
-            Vec::new()
+        let side = window_px(m);
+        let wide_var = m.gate_var + manoeuvre_var(&self.config, side, m.misses, frame_side);
+        let center = clamp_into(m.filter.position, width, height);
+        // A marker that has left the frame comes back across the border near where it
+        // left: its gate is the normal one around the border point, widened by a window
+        // per missed frame, not the whole frame (where it would take whatever looks like
+        // it on the far side).
+        // (Only a marker last seen near the border has left: one predicted out of the
+        // frame from the middle of it has a wrong velocity, and is searched everywhere.)
+        let border_gap = {
+            let c = m.last_center;
+            c.x.min(c.y)
+                .min(f64::from(width) - c.x)
+                .min(f64::from(height) - c.y)
         };
-        let all: Vec<Point2<f64>> = self.markers.iter().map(|m| m.filter.position).collect();
-        let mut candidates: Vec<Candidate> = Vec::new();
-        let mut seen: Vec<Vec<(Point2<f64>, PixelRect)>> = vec![Vec::new(); undecided.len()];
-        for (row, &i) in undecided.iter().enumerate() {
-            let m = &self.markers[i];
-            let side = window_px(m);
-            // The miss may be a manoeuvre (a release): the search opens to the search radius,
-            // and wider while the marker stays unseen, up to the whole frame. The filter takes
-            // the manoeuvre only if a candidate is taken.
-            let wide = m.gate_var + manoeuvre_var(config, side, m.misses, frame_side);
-            let pred = clamp_into(m.filter.position, width, height);
-            // A marker that has left the frame comes back across the border near where it
-            // left: its gate is the normal one around the border point, widened by a window
-            // per missed frame, not the whole frame (where it would take whatever looks like
-            // it on the far side).
-            // (Only a marker last seen near the border has left: one predicted out of the
-            // frame from the middle of it has a wrong velocity, and is searched everywhere.)
-            let border_gap = {
-                let c = m.last_center;
-                c.x.min(c.y)
-                    .min(f64::from(width) - c.x)
-                    .min(f64::from(height) - c.y)
-            };
-            let outside = (m.filter.position - pred).norm() > 0.5 * side
-                && border_gap < BORDER_WINDOWS * side + m.filter.velocity.norm();
-            let border_px = (GATE_CHI2 * m.gate_var).sqrt() + (m.misses as f64 + 1.0) * side;
-            let gate_px = if outside {
-                (GATE_CHI2 * wide).sqrt().min(border_px)
+        let outside = (m.filter.position - center).norm() > 0.5 * side
+            && border_gap < BORDER_WINDOWS * side + m.filter.velocity.norm();
+        let border_px = (GATE_CHI2 * m.gate_var).sqrt() + (m.misses as f64 + 1.0) * side;
+        let radius_px = if outside {
+            (GATE_CHI2 * wide_var).sqrt().min(border_px)
+        } else {
+            (GATE_CHI2 * wide_var).sqrt().min(2.0 * frame_side)
+        };
+        Gate {
+            wide_var,
+            center,
+            outside,
+            radius_px,
+        }
+    }
+
+    /// Marker `i`'s scored candidates in its gate (the quick pass's own measurement among
+    /// them: a marker half behind a twig), and every place it saw there.
+    fn detect(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        i: usize,
+        claimed: &[Claim],
+        quick: Option<Scored>,
+    ) -> (Vec<Candidate>, Vec<(Point2<f64>, PixelRect)>) {
+        let gate = self.gate(i);
+        let mut found: Vec<Measured> = quick.iter().map(|q| q.measured).collect();
+        let m = &self.markers[i];
+        if let Some(t) = &m.template {
+            found.extend(template_candidates(
+                t,
+                m,
+                frame,
+                gate.center,
+                gate.radius_px,
+                MAX_CANDIDATES,
+                &mut self.patch,
+            ));
+        } else {
+            let (w, h) = m.size;
+            let reach = gate.radius_px.ceil() as i32 + w.max(h);
+            let region = PixelRect::centered_at(gate.center, w, h).grown(reach, reach);
+            let mut masks: Vec<PixelRect> = if self.config.exclusive {
+                claimed.iter().map(|c| c.1).collect()
             } else {
-                (GATE_CHI2 * wide).sqrt().min(2.0 * frame_side)
+                Vec::new()
             };
-            // The quick pass's own measurement competes too (a marker half behind a twig).
-            let mut found: Vec<Measured> = quick[i].iter().map(|q| q.measured).collect();
-            if let Some(t) = &m.template {
-                found.extend(template_candidates(
-                    t,
-                    m,
-                    frame,
-                    pred,
-                    gate_px,
-                    MAX_CANDIDATES,
-                    &mut self.patch,
-                ));
-            } else {
-                let (w, h) = m.size;
-                let reach = gate_px.ceil() as i32 + w.max(h);
-                let region = PixelRect::centered_at(pred, w, h).grown(reach, reach);
-                let mut masks = masks.clone();
-                masks.extend(m.static_masks(region, pred));
-                fill(
+            masks.extend(m.static_masks(region, gate.center));
+            fill(
+                &mut self.region,
+                &self.config,
+                m,
+                frame,
+                self.previous.as_ref(),
+                depth,
+                region,
+                &masks,
+            );
+            let all: Vec<Point2<f64>> = self.markers.iter().map(|m| m.filter.position).collect();
+            let others = sharing_predictions(&self.markers, i, &all);
+            found.extend(
+                candidates_in(
                     &mut self.region,
-                    config,
+                    &mut self.labeler,
                     m,
-                    frame,
-                    self.previous.as_ref(),
-                    depth,
-                    region,
-                    &masks,
-                );
-                let others = sharing_predictions(&self.markers, i, &all);
-                found.extend(
-                    candidates_in(&mut self.region, &mut self.labeler, m, Some(pred), &others)
-                        .into_iter()
-                        .take(MAX_CANDIDATES),
-                );
+                    Some(gate.center),
+                    &others,
+                )
+                .into_iter()
+                .take(MAX_CANDIDATES),
+            );
+        }
+        if gate.outside {
+            found.retain(|c| (c.center - gate.center).norm() <= gate.radius_px);
+        }
+        let seen: Vec<(Point2<f64>, PixelRect)> =
+            found.iter().map(|c| (c.center, c.holds)).collect();
+        let mut with_context = Vec::with_capacity(found.len());
+        for c in found {
+            if c.confidence < self.config.min_confidence
+                || (self.config.exclusive && taken(&self.markers, i, c.center, claimed))
+            {
+                continue;
             }
-            if outside {
-                found.retain(|c| (c.center - pred).norm() <= gate_px);
-            }
-            let mut with_context = Vec::with_capacity(found.len());
-            for c in found {
-                seen[row].push((c.center, c.holds));
-                if c.confidence < config.min_confidence
-                    || (config.exclusive && taken(&self.markers, i, c.center, claimed))
-                {
-                    continue;
-                }
-                let context = m
-                    .context
-                    .as_ref()
-                    .filter(|_| m.context_informative())
-                    .map(|t| t.ncc_near(frame, c.center, &mut self.patch));
-                with_context.push((c, context));
-            }
-            let previous = self.previous.as_ref();
-            for mut s in m.score(&with_context, wide, crowded(&self.markers, i)) {
+            let context = m
+                .context
+                .as_ref()
+                .filter(|_| m.context_informative())
+                .map(|t| t.ncc_near(frame, c.center, &mut self.patch));
+            with_context.push((c, context));
+        }
+        let previous = self.previous.as_ref();
+        let scored = m
+            .score(&with_context, gate.wide_var, crowded(&self.markers, i))
+            .into_iter()
+            .map(|mut s| {
                 if let Some(prev) = previous
                     && m.misses == 0
                     && m.template.is_none()
@@ -220,18 +269,29 @@ impl Tracker {
                 {
                     s.cost += STATIC_JUMP_COST;
                 }
-                candidates.push(Candidate {
+                Candidate {
                     marker: i,
                     measured: s.measured,
                     cost: s.cost,
                     context: s.context,
-                });
-            }
-        }
-        // Columns: places, so that markers of one colour compete for the same blob.
+                }
+            })
+            .collect();
+        (scored, seen)
+    }
+
+    /// The joint, exclusive assignment of `candidates` to the `undecided` markers. Columns
+    /// are places, so that markers of one colour compete for the same blob; the markers
+    /// already decided (`claimed`) anchor their neighbours.
+    fn assign_places(
+        &self,
+        candidates: &[Candidate],
+        undecided: &[usize],
+        claimed: &[Claim],
+    ) -> Vec<Option<(Measured, Option<f64>)>> {
         let mut places: Vec<(Point2<f64>, f64)> = Vec::new();
         let mut column = Vec::with_capacity(candidates.len());
-        for c in &candidates {
+        for c in candidates {
             let side = window_px(&self.markers[c.marker]);
             let same = places
                 .iter()
@@ -241,9 +301,8 @@ impl Tracker {
                 places.len() - 1
             }));
         }
-        let rows = undecided.len();
         let cols = places.len();
-        let mut cost = vec![f64::INFINITY; rows * cols];
+        let mut cost = vec![f64::INFINITY; undecided.len() * cols];
         // A place inside another undecided marker's normal gate is that marker's by motion:
         // a colour marker that could reach it only by a manoeuvre pays for taking it. (Gray
         // targets in rows are guided by their neighbours instead, which this would fight.)
@@ -285,7 +344,7 @@ impl Tracker {
         let n = self.markers.len();
         let coherent = |a: usize, b: usize| self.coherence[a * n + b].coherent();
         let assignment = assign_anchored(&cost, cols, &lasts, &places_at, anchors, &coherent);
-        let chosen: Vec<Option<(Measured, Option<f64>)>> = undecided
+        undecided
             .iter()
             .zip(&assignment)
             .map(|(&i, j)| {
@@ -297,21 +356,18 @@ impl Tracker {
                     .min_by(|a, b| a.0.cost.total_cmp(&b.0.cost))?;
                 Some((best.0.measured, best.0.context))
             })
-            .collect();
-        // A marker found far outside its normal gate has manoeuvred: the filter takes the
-        // manoeuvre, so the measurement sets the new velocity.
-        for (&i, pick) in undecided.iter().zip(&chosen) {
-            let m = &mut self.markers[i];
-            if let Some((q, _)) = pick
-                && (q.center - m.filter.position).norm_squared() > GATE_CHI2 * m.gate_var
-            {
-                let side = window_px(m);
-                let sigma = manoeuvre_var(config, side, m.misses, frame_side).sqrt();
-                m.filter.manoeuvre(sigma);
-            }
-        }
-        // What a found marker saw in its gate and was not is a look-alike to remember,
-        // unless it is some marker's place.
+            .collect()
+    }
+
+    /// What a found marker saw in its gate and was not is a look-alike to remember, unless
+    /// it is some marker's place.
+    fn learn_gate_look_alikes(
+        &mut self,
+        undecided: &[usize],
+        claimed: &[Claim],
+        chosen: &[Option<(Measured, Option<f64>)>],
+        seen: Vec<Vec<(Point2<f64>, PixelRect)>>,
+    ) {
         let places_now: Vec<Point2<f64>> = self
             .markers
             .iter()
@@ -319,7 +375,7 @@ impl Tracker {
             .chain(claimed.iter().map(|c| c.2))
             .chain(chosen.iter().flatten().map(|c| c.0.center))
             .collect();
-        for ((&i, pick), blobs) in undecided.iter().zip(&chosen).zip(seen) {
+        for ((&i, pick), blobs) in undecided.iter().zip(chosen).zip(seen) {
             let Some((picked, _)) = pick else { continue };
             let side = window_px(&self.markers[i]);
             let near_marker = |p: &Point2<f64>| places_now.iter().any(|q| (q - p).norm() < side);
@@ -330,6 +386,17 @@ impl Tracker {
                 }
             }
         }
-        chosen
     }
+}
+
+/// A marker's search gate in one frame.
+struct Gate {
+    /// Variance of the opened gate (the normal gate's plus the manoeuvre's), pixels².
+    wide_var: f64,
+    /// The prediction, clamped into the frame.
+    center: Point2<f64>,
+    /// Whether the marker is predicted out of the frame after leaving it near a border.
+    outside: bool,
+    /// Search radius, pixels.
+    radius_px: f64,
 }
