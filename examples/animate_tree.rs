@@ -27,8 +27,8 @@ use clap::Parser;
 use serde::Serialize;
 use treemocap::beam_anim::{
     AnimConfig, BeamTree, DynamicsSource, DynamicsSpec, GlbOptions, Integrator, IntegratorReport,
-    Pose, SMALL_ANGLE_LIMIT_RAD, Simulation, angles_csv, frame_count, read_skeleton, write_bvh,
-    write_glb,
+    Pose, SMALL_ANGLE_LIMIT_RAD, Simulation, WindField, angles_csv, frame_count, read_skeleton,
+    write_bvh, write_glb,
 };
 use treemocap::modal_estimate::{EstimateConfig, Signal, estimate};
 use treemocap::space_colonize::synthetic::SyntheticConfig;
@@ -219,8 +219,98 @@ fn main() -> std::process::ExitCode {
     common::run("animate_tree", || run_main(&args))
 }
 
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
+/// The simulation of `args`: the skeleton read, dynamics assigned, wind or release set up.
+struct Setup {
+    /// The skeleton's name for messages and the summary.
+    name: String,
+    sim: Simulation,
+    /// The wind field, or `None` for a release in still air.
+    wind: Option<WindField>,
+    sources: Sources,
+    frames: usize,
+    /// The released branch's configured frequency and damping ratio, when one is released.
+    released: Option<(usize, f64, f64)>,
+}
+
 fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
+    let Setup {
+        name,
+        mut sim,
+        mut wind,
+        sources,
+        frames,
+        released,
+    } = set_up(args)?;
+    let (branches, segments) = (sim.tree().branches().len(), sim.tree().segment_count());
+    eprintln!(
+        "{branches} branches ({segments} segments), {frames} frames at {} fps, {}",
+        args.fps,
+        match args.release {
+            Some((id, deg)) => format!("release of branch {id} from {deg}°"),
+            None => format!("wind {} m/s", args.wind_speed_m_s),
+        }
+    );
+    let (poses, sim_s) = simulate(&mut sim, wind.as_mut(), frames)?;
+    let max_angle_deg = poses
+        .iter()
+        .flat_map(|p| p.angle_rad.iter())
+        .fold(0.0f64, |m, a| m.max(a.abs()))
+        .to_degrees();
+    let mut warnings = Vec::new();
+    if max_angle_deg > SMALL_ANGLE_LIMIT_RAD.to_degrees() {
+        warnings.push(format!(
+            "branches bend up to {max_angle_deg:.1}°, beyond the small-angle beam model ({:.0}°): the shapes are not physical",
+            SMALL_ANGLE_LIMIT_RAD.to_degrees()
+        ));
+    }
+    let release = match (args.release, released) {
+        (Some((id, degrees)), Some((i, frequency_hz, damping_ratio))) => {
+            let series: Vec<Option<f64>> = poses.iter().map(|p| Some(p.angle_rad[i])).collect();
+            let fit = Signal::uniform(args.fps, series)
+                .and_then(|s| estimate(&s, &EstimateConfig::default()))
+                .ok();
+            let mode = fit.as_ref().and_then(|e| e.modes.first().copied());
+            Some(Release {
+                branch: id,
+                degrees,
+                configured_frequency_hz: frequency_hz,
+                configured_damping_ratio: damping_ratio,
+                measured_frequency_hz: mode.map(|m| m.frequency_hz),
+                measured_damping_ratio: mode.map(|m| m.damping_ratio),
+            })
+        }
+        _ => None,
+    };
+    let outputs = write_outputs(args, &sim, &poses)?;
+    let released_mode = args.release.is_some();
+    let summary = Summary {
+        skeleton: name,
+        mode: if released_mode { "release" } else { "wind" },
+        branches,
+        segments,
+        frames,
+        fps: args.fps,
+        seconds: frames as f64 / args.fps,
+        wind_speed_m_s: if released_mode {
+            0.0
+        } else {
+            args.wind_speed_m_s
+        },
+        integrator: sim.integrator_report(),
+        dynamics_sources: sources,
+        max_angle_deg,
+        warnings,
+        release,
+        simulation_ms_per_frame: sim_s / frames as f64 * 1e3,
+        outputs,
+    };
+    println!("{}", serde_json::to_string_pretty(&summary)?);
+    Ok(())
+}
+
+/// Read the skeleton and the dynamics, check the options, and set up the simulation. Every
+/// error names the input it is about: the skeleton file, the dynamics file or the option.
+fn set_up(args: &Args) -> Result<Setup, Box<dyn std::error::Error>> {
     let (name, skeleton) = match &args.skeleton {
         Some(p) => (
             p.display().to_string(),
@@ -239,8 +329,6 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         ..AnimConfig::default()
     };
     config.wind.mean_speed_m_s = args.wind_speed_m_s;
-    // Every error names the input it is about: the skeleton file, the dynamics file or the
-    // option.
     let tree = BeamTree::new(&skeleton, &config).map_err(|e| format!("{name}: {e}"))?;
     let (dynamics_name, spec) = match &args.dynamics {
         Some(p) => (
@@ -259,32 +347,30 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         level: count(|s| matches!(s, DynamicsSource::Level(_))),
         default: count(|s| matches!(s, DynamicsSource::Default)),
     };
-    let (branches, segments) = (tree.branches().len(), tree.segment_count());
     let released = match args.release {
-        Some((id, deg)) => Some((
-            id,
-            tree.index_of(id)
-                .map_err(|e| format!("--release {id}:{deg}: {e}"))?,
-        )),
+        Some((id, deg)) => {
+            let i = tree
+                .index_of(id)
+                .map_err(|e| format!("--release {id}:{deg}: {e}"))?;
+            let d = &assignment.dynamics[i];
+            Some((i, d.frequency_hz, d.damping_ratio))
+        }
         None => None,
     };
-    let frames = frame_count(args.seconds, args.fps, segments, branches)
-        .map_err(|e| format!("--seconds {} --fps {}: {e}", args.seconds, args.fps))?;
+    let frames = frame_count(
+        args.seconds,
+        args.fps,
+        tree.segment_count(),
+        tree.branches().len(),
+    )
+    .map_err(|e| format!("--seconds {} --fps {}: {e}", args.seconds, args.fps))?;
     config
         .wind
         .validate()
         .map_err(|e| format!("--wind-speed {}: {e}", args.wind_speed_m_s))?;
     let mut sim = Simulation::new(tree, &assignment.dynamics, config, 1.0 / args.fps)
         .map_err(|e| format!("{dynamics_name} at --fps {}: {e}", args.fps))?;
-    eprintln!(
-        "{branches} branches ({segments} segments), {frames} frames at {} fps, {}",
-        args.fps,
-        match args.release {
-            Some((id, deg)) => format!("release of branch {id} from {deg}°"),
-            None => format!("wind {} m/s", args.wind_speed_m_s),
-        }
-    );
-    let mut wind = match args.release {
+    let wind = match args.release {
         Some((id, deg)) => {
             sim.pull(id, deg.to_radians())
                 .map_err(|e| format!("--release {id}:{deg}: {e}"))?;
@@ -292,6 +378,23 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         }
         None => Some(sim.wind_field()?),
     };
+    Ok(Setup {
+        name,
+        sim,
+        wind,
+        sources,
+        frames,
+        released,
+    })
+}
+
+/// Run `frames` steps (in `wind`, or free after a release) with progress on stderr: the
+/// poses from the start, and the seconds spent stepping.
+fn simulate(
+    sim: &mut Simulation,
+    mut wind: Option<&mut WindField>,
+    frames: usize,
+) -> Result<(Vec<Pose>, f64), Box<dyn std::error::Error>> {
     let mut poses: Vec<Pose> = Vec::with_capacity(frames + 1);
     poses.push(sim.pose().clone());
     let t = Instant::now();
@@ -299,7 +402,7 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let mut next_report = 0.1;
     for k in 0..frames {
         let t_frame = Instant::now();
-        match wind.as_mut() {
+        match wind.as_deref_mut() {
             Some(w) => sim.step(w)?,
             None => sim.step_free(),
         }
@@ -316,79 +419,31 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             next_report += 0.1;
         }
     }
-    let max_angle_deg = poses
-        .iter()
-        .flat_map(|p| p.angle_rad.iter())
-        .fold(0.0f64, |m, a| m.max(a.abs()))
-        .to_degrees();
-    let mut warnings = Vec::new();
-    if max_angle_deg > SMALL_ANGLE_LIMIT_RAD.to_degrees() {
-        warnings.push(format!(
-            "branches bend up to {max_angle_deg:.1}°, beyond the small-angle beam model ({:.0}°): the shapes are not physical",
-            SMALL_ANGLE_LIMIT_RAD.to_degrees()
-        ));
-    }
-    let release = match (args.release, released) {
-        (Some((id, degrees)), Some((_, i))) => {
-            let series: Vec<Option<f64>> = poses.iter().map(|p| Some(p.angle_rad[i])).collect();
-            let fit = Signal::uniform(args.fps, series)
-                .and_then(|s| estimate(&s, &EstimateConfig::default()))
-                .ok();
-            let mode = fit.as_ref().and_then(|e| e.modes.first().copied());
-            Some(Release {
-                branch: id,
-                degrees,
-                configured_frequency_hz: assignment.dynamics[i].frequency_hz,
-                configured_damping_ratio: assignment.dynamics[i].damping_ratio,
-                measured_frequency_hz: mode.map(|m| m.frequency_hz),
-                measured_damping_ratio: mode.map(|m| m.damping_ratio),
-            })
-        }
-        _ => None,
-    };
+    Ok((poses, sim_s))
+}
+
+/// Write the glTF, and the BVH and angle CSV when asked; the paths written.
+fn write_outputs(
+    args: &Args,
+    sim: &Simulation,
+    poses: &[Pose],
+) -> Result<Vec<String>, Box<dyn std::error::Error>> {
     let mut outputs = Vec::new();
     ensure_parent(&args.out)?;
-    write_glb(&args.out, &sim, &poses, &GlbOptions::default())?;
+    write_glb(&args.out, sim, poses, &GlbOptions::default())?;
     eprintln!("wrote {}", args.out.display());
     outputs.push(args.out.display().to_string());
     if let Some(p) = &args.bvh {
         ensure_parent(p)?;
-        write_bvh(p, &sim, &poses)?;
+        write_bvh(p, sim, poses)?;
         eprintln!("wrote {}", p.display());
         outputs.push(p.display().to_string());
     }
     if let Some(p) = &args.angles {
         ensure_parent(p)?;
-        std::fs::write(p, angles_csv(&sim, &poses)?)
-            .map_err(|e| format!("{}: {e}", p.display()))?;
+        std::fs::write(p, angles_csv(sim, poses)?).map_err(|e| format!("{}: {e}", p.display()))?;
         eprintln!("wrote {}", p.display());
         outputs.push(p.display().to_string());
     }
-    let summary = Summary {
-        skeleton: name,
-        mode: if args.release.is_some() {
-            "release"
-        } else {
-            "wind"
-        },
-        branches,
-        segments,
-        frames,
-        fps: args.fps,
-        seconds: frames as f64 / args.fps,
-        wind_speed_m_s: if args.release.is_some() {
-            0.0
-        } else {
-            args.wind_speed_m_s
-        },
-        integrator: sim.integrator_report(),
-        dynamics_sources: sources,
-        max_angle_deg,
-        warnings,
-        release,
-        simulation_ms_per_frame: sim_s / frames as f64 * 1e3,
-        outputs,
-    };
-    println!("{}", serde_json::to_string_pretty(&summary)?);
-    Ok(())
+    Ok(outputs)
 }
