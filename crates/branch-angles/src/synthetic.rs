@@ -119,7 +119,6 @@ pub fn two_level() -> SyntheticTree {
 /// As [`Hierarchy::new`] and [`Trajectories::new`]; [`AngleError::InvalidParameter`] for a
 /// length that is not positive or a tilt of 90 degrees or more (a swing would pass the
 /// singular direction).
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 pub fn generate(specs: &[BranchSpec], times_s: &[f64], release_s: f64) -> Result<SyntheticTree> {
     let mut nodes = vec![MarkerNode {
         id: "A".into(),
@@ -130,42 +129,8 @@ pub fn generate(specs: &[BranchSpec], times_s: &[f64], release_s: f64) -> Result
         parent: Some(s.parent.clone()),
     }));
     let hierarchy = Hierarchy::new(nodes)?;
-    for s in specs {
-        if !(s.length_m.is_finite() && s.length_m > 0.0) {
-            return Err(AngleError::param(
-                "length_m",
-                format!("{} for {}", s.length_m, s.id),
-            ));
-        }
-        if s.rest_tilt_rad.is_nan() || s.rest_tilt_rad.abs() >= std::f64::consts::FRAC_PI_2 {
-            return Err(AngleError::param(
-                "rest_tilt_rad",
-                format!("{} for {}", s.rest_tilt_rad, s.id),
-            ));
-        }
-    }
-    // Rest frames, parents first.
-    let mut frames: Vec<(String, Frame)> = Vec::new();
-    for s in specs {
-        let parent = frames.iter().find(|(id, _)| *id == s.parent).map(|f| f.1);
-        let (a, side) = match parent {
-            None => (
-                Vector3::z(),
-                Vector3::new(s.azimuth_rad.cos(), s.azimuth_rad.sin(), 0.0),
-            ),
-            Some(p) => (p.v, p.u * s.azimuth_rad.cos() + p.w * s.azimuth_rad.sin()),
-        };
-        let side = (side - a * side.dot(&a)).normalize();
-        let v = a * s.rest_tilt_rad.cos() + side * s.rest_tilt_rad.sin();
-        let toward = a - v * a.dot(&v);
-        let u = if toward.norm() > 1e-9 {
-            toward.normalize()
-        } else {
-            side
-        };
-        let w = u.cross(&v);
-        frames.push((s.id.clone(), Frame { a, v, u, w }));
-    }
+    check_specs(specs)?;
+    let frames = rest_frames(specs);
     let n = times_s.len();
     let mut positions: Vec<Vec<Option<Point3<f64>>>> = vec![vec![Some(Point3::origin()); n]];
     let mut directions: Vec<Vec<Vector3<f64>>> = Vec::new();
@@ -232,4 +197,49 @@ pub fn generate(specs: &[BranchSpec], times_s: &[f64], release_s: f64) -> Result
         truth,
         rest,
     })
+}
+
+/// A length that is not positive or a tilt of 90 degrees or more is an error.
+fn check_specs(specs: &[BranchSpec]) -> Result<()> {
+    for s in specs {
+        if !(s.length_m.is_finite() && s.length_m > 0.0) {
+            return Err(AngleError::param(
+                "length_m",
+                format!("{} for {}", s.length_m, s.id),
+            ));
+        }
+        if s.rest_tilt_rad.is_nan() || s.rest_tilt_rad.abs() >= std::f64::consts::FRAC_PI_2 {
+            return Err(AngleError::param(
+                "rest_tilt_rad",
+                format!("{} for {}", s.rest_tilt_rad, s.id),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Each branch's rest frame, parents first (a branch's parent comes before it in `specs`).
+fn rest_frames(specs: &[BranchSpec]) -> Vec<(String, Frame)> {
+    let mut frames: Vec<(String, Frame)> = Vec::new();
+    for s in specs {
+        let parent = frames.iter().find(|(id, _)| *id == s.parent).map(|f| f.1);
+        let (a, side) = match parent {
+            None => (
+                Vector3::z(),
+                Vector3::new(s.azimuth_rad.cos(), s.azimuth_rad.sin(), 0.0),
+            ),
+            Some(p) => (p.v, p.u * s.azimuth_rad.cos() + p.w * s.azimuth_rad.sin()),
+        };
+        let side = (side - a * side.dot(&a)).normalize();
+        let v = a * s.rest_tilt_rad.cos() + side * s.rest_tilt_rad.sin();
+        let toward = a - v * a.dot(&v);
+        let u = if toward.norm() > 1e-9 {
+            toward.normalize()
+        } else {
+            side
+        };
+        let w = u.cross(&v);
+        frames.push((s.id.clone(), Frame { a, v, u, w }));
+    }
+    frames
 }
