@@ -4,7 +4,8 @@
 use super::*;
 
 impl Tracker {
-    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
+    /// Learn marker `init` from the first frame (its model, reference blob, colour and
+    /// surroundings) and start its track there.
     pub(super) fn add_marker(
         &mut self,
         frame: &RgbImage,
@@ -12,24 +13,7 @@ impl Tracker {
         init: &MarkerInit,
     ) -> Result<()> {
         let w = init.window;
-        if w.is_empty() {
-            return Err(TrackError::EmptyWindow {
-                what: format!("of marker {:?}", init.id),
-                width: w.width,
-                height: w.height,
-            });
-        }
-        if !w.is_inside(&image_rect(self.width, self.height)) {
-            return Err(TrackError::WindowOutsideImage {
-                what: format!("of marker {:?}", init.id),
-                x: w.x,
-                y: w.y,
-                width: w.width,
-                height: w.height,
-                image_width: self.width,
-                image_height: self.height,
-            });
-        }
+        self.check_window(init)?;
         let config = &self.config;
         let model = MarkerModel::learn(
             &init.id,
@@ -42,38 +26,7 @@ impl Tracker {
         let mask = marker_mask(frame, w, &config.model, &config.hsv_mask);
         let lookup = Lookup::new(&config.model, &model, &mask);
         let center = w.center();
-        let side = f64::from(w.width.max(w.height));
-        let mut state = MarkerState {
-            id: init.id.clone(),
-            model,
-            lookup,
-            init_size: (w.width, w.height),
-            size: (w.width, w.height),
-            filter: Kalman::new(center, MEASUREMENT_PX, 0.1 * side),
-            swing: Swing::default(),
-            acceleration_px: ACCELERATION_MIN_PX,
-            last_center: center,
-            reference: Reference {
-                mass: 1.0,
-                pixel_weight: 255.0,
-                threshold: 255.0 * BLOB_THRESHOLD,
-                pixels: w.area() as f64 * 0.5,
-                width_px: side * 0.8,
-                gap: 1,
-            },
-            depth_m: None,
-            misses: 0,
-            last_status: TrackStatus::Tracked,
-            context: None,
-            context_level: 1.0,
-            context_var: 0.0,
-            confidence_mean: 1.0,
-            confidence_var: 0.0,
-            gate_var: 1.0,
-            distractors: Vec::new(),
-            colour: [0.0; 3],
-            template: None,
-        };
+        let mut state = MarkerState::new(init.id.clone(), model, lookup, w);
         // The reference: the window's mass, and the blob of the marker in it.
         state.depth_m = depth.and_then(|d| window_depth(d, w));
         let region = w.grown(w.width, w.height);
@@ -143,6 +96,30 @@ impl Tracker {
             id: init.id.clone(),
             observations: vec![observation],
         });
+        Ok(())
+    }
+
+    /// A marker's window must hold pixels and lie entirely inside the frame.
+    fn check_window(&self, init: &MarkerInit) -> Result<()> {
+        let w = init.window;
+        if w.is_empty() {
+            return Err(TrackError::EmptyWindow {
+                what: format!("of marker {:?}", init.id),
+                width: w.width,
+                height: w.height,
+            });
+        }
+        if !w.is_inside(&image_rect(self.width, self.height)) {
+            return Err(TrackError::WindowOutsideImage {
+                what: format!("of marker {:?}", init.id),
+                x: w.x,
+                y: w.y,
+                width: w.width,
+                height: w.height,
+                image_width: self.width,
+                image_height: self.height,
+            });
+        }
         Ok(())
     }
 

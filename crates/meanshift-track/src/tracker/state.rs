@@ -4,6 +4,44 @@
 use super::*;
 
 impl MarkerState {
+    /// A marker's state before anything is learnt from its first frame: at rest at the
+    /// window's centre, its reference a filled window.
+    pub(super) fn new(id: String, model: MarkerModel, lookup: Lookup, w: PixelRect) -> Self {
+        let center = w.center();
+        let side = f64::from(w.width.max(w.height));
+        MarkerState {
+            id,
+            model,
+            lookup,
+            init_size: (w.width, w.height),
+            size: (w.width, w.height),
+            filter: Kalman::new(center, MEASUREMENT_PX, 0.1 * side),
+            swing: Swing::default(),
+            acceleration_px: ACCELERATION_MIN_PX,
+            last_center: center,
+            reference: Reference {
+                mass: 1.0,
+                pixel_weight: 255.0,
+                threshold: 255.0 * BLOB_THRESHOLD,
+                pixels: w.area() as f64 * 0.5,
+                width_px: side * 0.8,
+                gap: 1,
+            },
+            depth_m: None,
+            misses: 0,
+            last_status: TrackStatus::Tracked,
+            context: None,
+            context_level: 1.0,
+            context_var: 0.0,
+            confidence_mean: 1.0,
+            confidence_var: 0.0,
+            gate_var: 1.0,
+            distractors: Vec::new(),
+            colour: [0.0; 3],
+            template: None,
+        }
+    }
+
     /// Whether the surroundings tell this marker apart: they correlate well with
     /// themselves from frame to frame (a textured background, a fork, a target board), not
     /// only with noise.
