@@ -220,7 +220,6 @@ impl Template {
     /// The best matches (at most `max`, best first) whose centres lie within `radius_px` of
     /// `center`: local maxima of a coarse NCC map, each refined at full resolution to a
     /// sub-pixel centre.
-    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
     pub(crate) fn search(
         &self,
         frame: &RgbImage,
@@ -237,135 +236,186 @@ impl Template {
         };
         let (c0x, c0y) = anchor(center - self.offset);
         let r = (radius_px.max(0.0) / s as f64).ceil().min(4096.0) as i64;
-        let mut coarse_peaks: Vec<(f64, i64, i64)> = Vec::new();
-        {
-            // The frame's gray cells under every coarse position of the template.
-            let (cw, ch) = (self.width / s, self.height / s);
-            let coarse: &[f32] = if s == self.scale {
-                &self.coarse
-            } else {
-                &self.values
-            };
-            let span = 2 * r as usize + 1;
-            let (gw, gh) = (span + cw, span + ch);
-            let gx0 = c0x - (self.width / 2) as i64 - r * s as i64;
-            let gy0 = c0y - (self.height / 2) as i64 - r * s as i64;
-            let (fw, fh) = (i64::from(frame.width()), i64::from(frame.height()));
-            let raw = frame.as_raw();
-            let mut grid = vec![f32::NAN; gw * gh];
-            for j in 0..gh {
-                for i in 0..gw {
-                    let (x0, y0) = (gx0 + (i * s) as i64, gy0 + (j * s) as i64);
-                    if x0 < 0 || y0 < 0 || x0 + s as i64 > fw || y0 + s as i64 > fh {
-                        continue;
-                    }
-                    let mut sum = 0.0f32;
-                    for y in y0..y0 + s as i64 {
-                        for x in x0..x0 + s as i64 {
-                            let k = ((y * fw + x) * 3) as usize;
-                            sum += f32::from(rgb_to_gray([raw[k], raw[k + 1], raw[k + 2]]));
-                        }
-                    }
-                    grid[j * gw + i] = sum / (s * s) as f32;
-                }
-            }
-            let mut map = vec![f64::NEG_INFINITY; span * span];
-            let mut cell = Vec::with_capacity(cw * ch);
-            for v in 0..span {
-                for u in 0..span {
-                    let (du, dv) = (u as i64 - r, v as i64 - r);
-                    if ((du * du + dv * dv) as f64) > (r as f64 + 0.5).powi(2) {
-                        continue;
-                    }
-                    cell.clear();
-                    for j in 0..ch {
-                        cell.extend_from_slice(&grid[(v + j) * gw + u..(v + j) * gw + u + cw]);
-                    }
-                    map[v * span + u] = ncc(coarse, &cell);
-                }
-            }
-            for v in 0..span {
-                for u in 0..span {
-                    let m = map[v * span + u];
-                    if m < MIN_PEAK_NCC {
-                        continue;
-                    }
-                    let mut peak = true;
-                    'n: for dv in -1i64..=1 {
-                        for du in -1i64..=1 {
-                            let (uu, vv) = (u as i64 + du, v as i64 + dv);
-                            if (du, dv) == (0, 0)
-                                || uu < 0
-                                || vv < 0
-                                || uu >= span as i64
-                                || vv >= span as i64
-                            {
-                                continue;
-                            }
-                            if map[vv as usize * span + uu as usize] > m {
-                                peak = false;
-                                break 'n;
-                            }
-                        }
-                    }
-                    if peak {
-                        coarse_peaks.push((
-                            m,
-                            c0x + (u as i64 - r) * s as i64,
-                            c0y + (v as i64 - r) * s as i64,
-                        ));
-                    }
-                }
-            }
-            coarse_peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
-            coarse_peaks.truncate((max * 2).max(MIN_REFINED));
-        }
+        let mut coarse_peaks: Vec<(f64, i64, i64)> = self
+            .coarse_peaks(frame, (c0x, c0y), r, s)
+            .into_iter()
+            .map(|(m, u, v)| {
+                (
+                    m,
+                    c0x + (u as i64 - r) * s as i64,
+                    c0y + (v as i64 - r) * s as i64,
+                )
+            })
+            .collect();
+        coarse_peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
+        coarse_peaks.truncate((max * 2).max(MIN_REFINED));
         let mut out: Vec<Match> = Vec::new();
         for &(_, px, py) in &coarse_peaks {
-            let reach = s as i64;
-            let mut best = (f64::NEG_INFINITY, px, py);
-            for dy in -reach..=reach {
-                for dx in -reach..=reach {
-                    patch_at(frame, (px + dx, py + dy), self.width, self.height, scratch);
-                    let v = ncc(&self.values, scratch);
-                    if v > best.0 {
-                        best = (v, px + dx, py + dy);
-                    }
-                }
-            }
-            let (v, bx, by) = best;
-            if !v.is_finite() {
+            let Some(m) = self.refine(frame, (px, py), s, scratch) else {
                 continue;
-            }
-            let mut at = |x: i64, y: i64| {
-                patch_at(frame, (x, y), self.width, self.height, scratch);
-                ncc(&self.values, scratch)
             };
-            let sub = |l: f64, c: f64, r: f64| {
-                let d = l - 2.0 * c + r;
-                if d < -1e-12 {
-                    (0.5 * (l - r) / d).clamp(-0.5, 0.5)
-                } else {
-                    0.0
-                }
-            };
-            let (l, rr) = (at(bx - 1, by), at(bx + 1, by));
-            let (u, d) = (at(bx, by - 1), at(bx, by + 1));
-            let c = Point2::new(bx as f64 + sub(l, v, rr), by as f64 + sub(u, v, d)) + self.offset;
-            if (c - center).norm() > radius_px + 1.5 {
+            if (m.center - center).norm() > radius_px + 1.5 {
                 continue;
             }
             if out
                 .iter()
-                .all(|m| (m.center - c).norm() > 0.5 * self.width.min(self.height) as f64)
+                .all(|o| (o.center - m.center).norm() > 0.5 * self.width.min(self.height) as f64)
             {
-                out.push(Match { center: c, ncc: v });
+                out.push(m);
             }
         }
         out.sort_by(|a, b| b.ncc.total_cmp(&a.ncc));
         out.truncate(max);
         out
     }
+
+    /// The local maxima (NCC, column, row) of the NCC map of the template at cell size `s`
+    /// over the disc of radius `r` cells around the anchor `(c0x, c0y)`.
+    fn coarse_peaks(
+        &self,
+        frame: &RgbImage,
+        (c0x, c0y): (i64, i64),
+        r: i64,
+        s: usize,
+    ) -> Vec<(f64, usize, usize)> {
+        // The frame's gray cells under every coarse position of the template.
+        let (cw, ch) = (self.width / s, self.height / s);
+        let coarse: &[f32] = if s == self.scale {
+            &self.coarse
+        } else {
+            &self.values
+        };
+        let span = 2 * r as usize + 1;
+        let (gw, gh) = (span + cw, span + ch);
+        let gx0 = c0x - (self.width / 2) as i64 - r * s as i64;
+        let gy0 = c0y - (self.height / 2) as i64 - r * s as i64;
+        let grid = gray_cells(frame, (gx0, gy0), (gw, gh), s);
+        let mut map = vec![f64::NEG_INFINITY; span * span];
+        let mut cell = Vec::with_capacity(cw * ch);
+        for v in 0..span {
+            for u in 0..span {
+                let (du, dv) = (u as i64 - r, v as i64 - r);
+                if ((du * du + dv * dv) as f64) > (r as f64 + 0.5).powi(2) {
+                    continue;
+                }
+                cell.clear();
+                for j in 0..ch {
+                    cell.extend_from_slice(&grid[(v + j) * gw + u..(v + j) * gw + u + cw]);
+                }
+                map[v * span + u] = ncc(coarse, &cell);
+            }
+        }
+        local_maxima(&map, span, MIN_PEAK_NCC)
+    }
+
+    /// The best full-resolution position within a coarse cell of `(px, py)`, refined to a
+    /// sub-pixel centre by a parabola through its neighbours; `None` when no position there
+    /// can be compared.
+    fn refine(
+        &self,
+        frame: &RgbImage,
+        (px, py): (i64, i64),
+        s: usize,
+        scratch: &mut Vec<f32>,
+    ) -> Option<Match> {
+        let reach = s as i64;
+        let mut best = (f64::NEG_INFINITY, px, py);
+        for dy in -reach..=reach {
+            for dx in -reach..=reach {
+                patch_at(frame, (px + dx, py + dy), self.width, self.height, scratch);
+                let v = ncc(&self.values, scratch);
+                if v > best.0 {
+                    best = (v, px + dx, py + dy);
+                }
+            }
+        }
+        let (v, bx, by) = best;
+        if !v.is_finite() {
+            return None;
+        }
+        let mut at = |x: i64, y: i64| {
+            patch_at(frame, (x, y), self.width, self.height, scratch);
+            ncc(&self.values, scratch)
+        };
+        let sub = |l: f64, c: f64, r: f64| {
+            let d = l - 2.0 * c + r;
+            if d < -1e-12 {
+                (0.5 * (l - r) / d).clamp(-0.5, 0.5)
+            } else {
+                0.0
+            }
+        };
+        let (l, rr) = (at(bx - 1, by), at(bx + 1, by));
+        let (u, d) = (at(bx, by - 1), at(bx, by + 1));
+        let center = Point2::new(bx as f64 + sub(l, v, rr), by as f64 + sub(u, v, d)) + self.offset;
+        Some(Match { center, ncc: v })
+    }
+}
+
+/// The mean gray level of the `s`x`s` cells of a `gw`x`gh` grid starting at pixel
+/// `(gx0, gy0)`; NaN for a cell not entirely inside the frame.
+fn gray_cells(
+    frame: &RgbImage,
+    (gx0, gy0): (i64, i64),
+    (gw, gh): (usize, usize),
+    s: usize,
+) -> Vec<f32> {
+    let (fw, fh) = (i64::from(frame.width()), i64::from(frame.height()));
+    let raw = frame.as_raw();
+    let mut grid = vec![f32::NAN; gw * gh];
+    for j in 0..gh {
+        for i in 0..gw {
+            let (x0, y0) = (gx0 + (i * s) as i64, gy0 + (j * s) as i64);
+            if x0 < 0 || y0 < 0 || x0 + s as i64 > fw || y0 + s as i64 > fh {
+                continue;
+            }
+            let mut sum = 0.0f32;
+            for y in y0..y0 + s as i64 {
+                for x in x0..x0 + s as i64 {
+                    let k = ((y * fw + x) * 3) as usize;
+                    sum += f32::from(rgb_to_gray([raw[k], raw[k + 1], raw[k + 2]]));
+                }
+            }
+            grid[j * gw + i] = sum / (s * s) as f32;
+        }
+    }
+    grid
+}
+
+/// The cells (value, column, row) of a `span`x`span` map that are at least `min` and no
+/// smaller than any of their eight neighbours.
+fn local_maxima(map: &[f64], span: usize, min: f64) -> Vec<(f64, usize, usize)> {
+    let mut out = Vec::new();
+    for v in 0..span {
+        for u in 0..span {
+            let m = map[v * span + u];
+            if m < min {
+                continue;
+            }
+            let mut peak = true;
+            'n: for dv in -1i64..=1 {
+                for du in -1i64..=1 {
+                    let (uu, vv) = (u as i64 + du, v as i64 + dv);
+                    if (du, dv) == (0, 0)
+                        || uu < 0
+                        || vv < 0
+                        || uu >= span as i64
+                        || vv >= span as i64
+                    {
+                        continue;
+                    }
+                    if map[vv as usize * span + uu as usize] > m {
+                        peak = false;
+                        break 'n;
+                    }
+                }
+            }
+            if peak {
+                out.push((m, u, v));
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]
