@@ -544,45 +544,10 @@ impl StressScene {
 
 /// Place the markers: paths apart from each other, inside the frame (but for re-entries),
 /// crossing pairs on purpose.
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 pub(super) fn place_markers(cfg: &StressConfig, rng: &mut Rng) -> Vec<StressMarker> {
-    let (w, h) = (f64::from(cfg.width), f64::from(cfg.height));
     let mut out: Vec<StressMarker> = Vec::with_capacity(cfg.markers);
-    let draw = |rng: &mut Rng, k: usize| {
-        let d = rng.range(cfg.marker_diameter_px);
-        let a = rng.range([-0.6, 0.6])
-            + if rng.uniform() < 0.5 {
-                0.0
-            } else {
-                std::f64::consts::PI
-            };
-        let jitter = |rng: &mut Rng, c: u8, spread: f64| {
-            (f64::from(c) + rng.range([-spread, spread])).clamp(0.0, 255.0) as u8
-        };
-        let rgb = [
-            jitter(rng, MARKER_RGB[0], 15.0),
-            jitter(rng, MARKER_RGB[1], 10.0),
-            jitter(rng, MARKER_RGB[2], 10.0),
-        ];
-        StressMarker {
-            id: marker_id(k),
-            rest: Point2::origin(),
-            direction: Vector2::new(a.cos(), a.sin()),
-            amplitude_px: rng.range(cfg.amplitude_px),
-            across: rng.range([0.0, 0.25]),
-            frequency_hz: rng.range(cfg.frequency_hz),
-            damping_ratio: rng.range(cfg.damping_ratio),
-            diameter_px: d,
-            rgb,
-            stem_root: None,
-        }
-    };
-    let path = |m: &StressMarker| {
-        let reach = m.amplitude_px * (1.0 + m.across);
-        [m.rest - m.direction * reach, m.rest + m.direction * reach]
-    };
     for k in 0..cfg.markers {
-        let mut m = draw(rng, k);
+        let mut m = draw_marker(cfg, rng, k);
         let pair_second = k % 2 == 1 && k < 2 * cfg.crossing_pairs;
         let reentry = k >= 2 * cfg.crossing_pairs && k < 2 * cfg.crossing_pairs + cfg.reentries;
         if pair_second {
@@ -598,59 +563,7 @@ pub(super) fn place_markers(cfg: &StressConfig, rng: &mut Rng) -> Vec<StressMark
             m.rgb = first.rgb;
             m.frequency_hz = first.frequency_hz * rng.range([0.6, 0.8]);
         } else {
-            let margin = m.diameter_px + 6.0;
-            let mut best: Option<(f64, Point2<f64>, Vector2<f64>)> = None;
-            for _ in 0..300 {
-                let mut dir = m.direction;
-                let rest = if reentry {
-                    // Pulled towards the nearest side border, 0.55 amplitudes from it.
-                    let right = rng.uniform() < 0.5;
-                    dir = Vector2::new(if right { 1.0 } else { -1.0 }, rng.range([-0.2, 0.2]));
-                    dir /= dir.norm();
-                    let x = if right {
-                        w - 0.55 * m.amplitude_px
-                    } else {
-                        0.55 * m.amplitude_px
-                    };
-                    Point2::new(x, rng.range([margin + 30.0, h - margin - 30.0]))
-                } else {
-                    Point2::new(
-                        rng.range([margin, w - margin]),
-                        rng.range([margin, h - margin]),
-                    )
-                };
-                let probe = StressMarker {
-                    rest,
-                    direction: dir,
-                    ..m.clone()
-                };
-                let [p0, p1] = path(&probe);
-                let inside = |p: Point2<f64>| {
-                    p.x > margin && p.y > margin && p.x < w - margin && p.y < h - margin
-                };
-                if !(reentry || inside(p0) && inside(p1)) {
-                    continue;
-                }
-                let clearance = out
-                    .iter()
-                    .map(|o| {
-                        segment_distance(path(&probe), path(o))
-                            - 1.5 * (o.diameter_px + probe.diameter_px)
-                    })
-                    .fold(f64::INFINITY, f64::min);
-                if best.as_ref().is_none_or(|b| clearance > b.0) {
-                    best = Some((clearance, rest, dir));
-                }
-                if clearance > 10.0 {
-                    break;
-                }
-            }
-            if let Some((_, rest, dir)) = best {
-                m.rest = rest;
-                m.direction = dir;
-            } else {
-                m.rest = Point2::new(w * 0.5, h * 0.5);
-            }
+            (m.rest, m.direction) = free_place(cfg, rng, &m, &out, reentry);
         }
         if cfg.stems {
             // Rooted below the marker, off the swing line.
@@ -661,4 +574,104 @@ pub(super) fn place_markers(cfg: &StressConfig, rng: &mut Rng) -> Vec<StressMark
         out.push(m);
     }
     out
+}
+
+/// Marker `k`'s size, colour and motion, drawn from the config's ranges (not yet placed).
+fn draw_marker(cfg: &StressConfig, rng: &mut Rng, k: usize) -> StressMarker {
+    let d = rng.range(cfg.marker_diameter_px);
+    let a = rng.range([-0.6, 0.6])
+        + if rng.uniform() < 0.5 {
+            0.0
+        } else {
+            std::f64::consts::PI
+        };
+    let jitter = |rng: &mut Rng, c: u8, spread: f64| {
+        (f64::from(c) + rng.range([-spread, spread])).clamp(0.0, 255.0) as u8
+    };
+    let rgb = [
+        jitter(rng, MARKER_RGB[0], 15.0),
+        jitter(rng, MARKER_RGB[1], 10.0),
+        jitter(rng, MARKER_RGB[2], 10.0),
+    ];
+    StressMarker {
+        id: marker_id(k),
+        rest: Point2::origin(),
+        direction: Vector2::new(a.cos(), a.sin()),
+        amplitude_px: rng.range(cfg.amplitude_px),
+        across: rng.range([0.0, 0.25]),
+        frequency_hz: rng.range(cfg.frequency_hz),
+        damping_ratio: rng.range(cfg.damping_ratio),
+        diameter_px: d,
+        rgb,
+        stem_root: None,
+    }
+}
+
+/// The ends of a marker's swing.
+fn swing_path(m: &StressMarker) -> [Point2<f64>; 2] {
+    let reach = m.amplitude_px * (1.0 + m.across);
+    [m.rest - m.direction * reach, m.rest + m.direction * reach]
+}
+
+/// A rest position and swing direction for `m` whose path stays inside the frame (a
+/// re-entering marker: pulled towards a side border) and clear of the markers already
+/// `placed`: the clearest of up to 300 draws, the first with 10 px to spare.
+fn free_place(
+    cfg: &StressConfig,
+    rng: &mut Rng,
+    m: &StressMarker,
+    placed: &[StressMarker],
+    reentry: bool,
+) -> (Point2<f64>, Vector2<f64>) {
+    let (w, h) = (f64::from(cfg.width), f64::from(cfg.height));
+    let margin = m.diameter_px + 6.0;
+    let mut best: Option<(f64, Point2<f64>, Vector2<f64>)> = None;
+    for _ in 0..300 {
+        let mut dir = m.direction;
+        let rest = if reentry {
+            // Pulled towards the nearest side border, 0.55 amplitudes from it.
+            let right = rng.uniform() < 0.5;
+            dir = Vector2::new(if right { 1.0 } else { -1.0 }, rng.range([-0.2, 0.2]));
+            dir /= dir.norm();
+            let x = if right {
+                w - 0.55 * m.amplitude_px
+            } else {
+                0.55 * m.amplitude_px
+            };
+            Point2::new(x, rng.range([margin + 30.0, h - margin - 30.0]))
+        } else {
+            Point2::new(
+                rng.range([margin, w - margin]),
+                rng.range([margin, h - margin]),
+            )
+        };
+        let probe = StressMarker {
+            rest,
+            direction: dir,
+            ..m.clone()
+        };
+        let [p0, p1] = swing_path(&probe);
+        let inside =
+            |p: Point2<f64>| p.x > margin && p.y > margin && p.x < w - margin && p.y < h - margin;
+        if !(reentry || inside(p0) && inside(p1)) {
+            continue;
+        }
+        let clearance = placed
+            .iter()
+            .map(|o| {
+                segment_distance(swing_path(&probe), swing_path(o))
+                    - 1.5 * (o.diameter_px + probe.diameter_px)
+            })
+            .fold(f64::INFINITY, f64::min);
+        if best.as_ref().is_none_or(|b| clearance > b.0) {
+            best = Some((clearance, rest, dir));
+        }
+        if clearance > 10.0 {
+            break;
+        }
+    }
+    best.map_or(
+        (Point2::new(w * 0.5, h * 0.5), m.direction),
+        |(_, rest, dir)| (rest, dir),
+    )
 }
