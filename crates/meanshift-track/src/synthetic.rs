@@ -234,13 +234,40 @@ pub const MAX_SEQUENCE_BYTES: f64 = 2.0 * 1024.0 * 1024.0 * 1024.0;
 ///
 /// # Errors
 /// As [`SequenceConfig::validate`].
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 pub fn generate(config: &SequenceConfig) -> Result<Sequence> {
     config.validate()?;
     let mut rng = Rng::new(config.seed ^ 0x6D61_726B_6572); // "marker"
+    let markers = grid_markers(config, &mut rng);
+    let (background, twigs) = static_scene(config, &mut rng, &markers);
+    let inits = markers
+        .iter()
+        .map(|m| {
+            let size = (m.diameter_px + 4.0).round() as i32;
+            MarkerInit {
+                id: m.id.clone(),
+                window: PixelRect::centered_at(m.rest, size, size),
+            }
+        })
+        .collect();
+    let mut frames = Vec::with_capacity(config.frames);
+    let mut truth = Vec::with_capacity(config.frames);
+    for f in 0..config.frames {
+        let (img, centres) = render_frame(config, &mut rng, &background, &markers, &twigs, f);
+        frames.push(img);
+        truth.push(centres);
+    }
+    Ok(Sequence {
+        frames,
+        markers,
+        truth,
+        inits,
+    })
+}
+
+/// The markers on a loose grid, so that their paths rarely cross.
+fn grid_markers(config: &SequenceConfig, rng: &mut Rng) -> Vec<SyntheticMarker> {
     let (w, h) = (f64::from(config.width), f64::from(config.height));
     let margin = config.amplitude_px[1] + config.marker_diameter_px[1] + 8.0;
-    // Markers on a loose grid so their paths rarely cross.
     let cols = (config.markers as f64).sqrt().ceil() as usize;
     let rows = config.markers.div_ceil(cols);
     let mut markers = Vec::with_capacity(config.markers);
@@ -263,7 +290,18 @@ pub fn generate(config: &SequenceConfig) -> Result<Sequence> {
             diameter_px: rng.range(config.marker_diameter_px),
         });
     }
-    // Static scene: a mottled background, distractors, twigs.
+    markers
+}
+
+/// A twig in front of the markers: column x, rows y0..y1 and half width, pixels.
+type Twig = (f64, f64, f64, f64);
+
+/// The static scene: a mottled background with distractors painted in, and the twigs.
+fn static_scene(
+    config: &SequenceConfig,
+    rng: &mut Rng,
+    markers: &[SyntheticMarker],
+) -> (RgbImage, Vec<Twig>) {
     let mut background = RgbImage::new(config.width, config.height);
     let (fx, fy) = (rng.range([0.02, 0.05]), rng.range([0.02, 0.05]));
     for (x, y, p) in background.enumerate_pixels_mut() {
@@ -301,78 +339,70 @@ pub fn generate(config: &SequenceConfig) -> Result<Sequence> {
             twigs.push((x, m.rest.y - 25.0, m.rest.y + 25.0, half));
         }
     }
-    let inits = markers
-        .iter()
-        .map(|m| {
-            let size = (m.diameter_px + 4.0).round() as i32;
-            MarkerInit {
-                id: m.id.clone(),
-                window: PixelRect::centered_at(m.rest, size, size),
-            }
-        })
-        .collect();
+    (background, twigs)
+}
+
+/// Frame `f`: the markers (motion-blurred over the exposure), the twigs in front of them,
+/// sensor noise and holes; and the markers' true centres.
+fn render_frame(
+    config: &SequenceConfig,
+    rng: &mut Rng,
+    background: &RgbImage,
+    markers: &[SyntheticMarker],
+    twigs: &[Twig],
+    f: usize,
+) -> (RgbImage, Vec<Point2<f64>>) {
     let pull_s = config.pull_start_frame as f64 / config.fps_hz;
     let release_s = config.release_frame as f64 / config.fps_hz;
     let exposure_s = config.exposure_fraction / config.fps_hz;
-    let mut frames = Vec::with_capacity(config.frames);
-    let mut truth = Vec::with_capacity(config.frames);
-    for f in 0..config.frames {
-        let t = f as f64 / config.fps_hz;
-        let mut img = background.clone();
-        let mut centres = Vec::with_capacity(markers.len());
-        for m in &markers {
-            centres.push(m.position(t, pull_s, release_s));
-            let samples = if exposure_s > 0.0 { BLUR_SAMPLES } else { 1 };
-            for s in 0..samples {
-                let ts = t + exposure_s * ((s as f64 + 0.5) / samples as f64 - 0.5);
-                let c = m.position(ts, pull_s, release_s);
-                paint_disc(
-                    &mut img,
-                    c,
-                    m.diameter_px * 0.5,
-                    MARKER_RGB,
-                    1.0 / samples as f64,
-                );
-            }
+    let t = f as f64 / config.fps_hz;
+    let mut img = background.clone();
+    let mut centres = Vec::with_capacity(markers.len());
+    for m in markers {
+        centres.push(m.position(t, pull_s, release_s));
+        let samples = if exposure_s > 0.0 { BLUR_SAMPLES } else { 1 };
+        for s in 0..samples {
+            let ts = t + exposure_s * ((s as f64 + 0.5) / samples as f64 - 0.5);
+            let c = m.position(ts, pull_s, release_s);
+            paint_disc(
+                &mut img,
+                c,
+                m.diameter_px * 0.5,
+                MARKER_RGB,
+                1.0 / samples as f64,
+            );
         }
-        // Twigs in front of the markers.
-        for &(x, y0, y1, half) in &twigs {
-            let r = PixelRect::new(
-                (x - half).round() as i32,
-                y0.round() as i32,
-                (2.0 * half).round() as i32,
-                (y1 - y0).round() as i32,
-            )
-            .intersect(&PixelRect::image(config.width, config.height));
-            for yy in r.y..r.bottom() as i32 {
-                for xx in r.x..r.right() as i32 {
-                    img.put_pixel(xx as u32, yy as u32, Rgb(TWIG_RGB));
-                }
-            }
-        }
-        // Noise and holes.
-        for p in img.pixels_mut() {
-            if rng.uniform() < config.hole_fraction {
-                *p = Rgb([0, 0, 0]);
-                continue;
-            }
-            if config.noise_sigma > 0.0 {
-                for c in &mut p.0 {
-                    *c = (f64::from(*c) + config.noise_sigma * rng.normal())
-                        .round()
-                        .clamp(0.0, 255.0) as u8;
-                }
-            }
-        }
-        frames.push(img);
-        truth.push(centres);
     }
-    Ok(Sequence {
-        frames,
-        markers,
-        truth,
-        inits,
-    })
+    // Twigs in front of the markers.
+    for &(x, y0, y1, half) in twigs {
+        let r = PixelRect::new(
+            (x - half).round() as i32,
+            y0.round() as i32,
+            (2.0 * half).round() as i32,
+            (y1 - y0).round() as i32,
+        )
+        .intersect(&PixelRect::image(config.width, config.height));
+        for yy in r.y..r.bottom() as i32 {
+            for xx in r.x..r.right() as i32 {
+                img.put_pixel(xx as u32, yy as u32, Rgb(TWIG_RGB));
+            }
+        }
+    }
+    // Noise and holes.
+    for p in img.pixels_mut() {
+        if rng.uniform() < config.hole_fraction {
+            *p = Rgb([0, 0, 0]);
+            continue;
+        }
+        if config.noise_sigma > 0.0 {
+            for c in &mut p.0 {
+                *c = (f64::from(*c) + config.noise_sigma * rng.normal())
+                    .round()
+                    .clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+    (img, centres)
 }
 
 /// Blend a disc of colour `rgb` with opacity `alpha` (anti-aliased edge, 4x4 sub-pixels).
