@@ -6,7 +6,7 @@ use serde::Serialize;
 use crate::error::{AnimError, Result};
 use crate::oscillator::{Dynamics, Integrator, Step, step_for};
 use crate::rotation::{cross2, qmul2, rotate2, rotation, rotation2};
-use crate::tree::{BeamTree, GREEN_WOOD_DENSITY_KG_M3, SEGMENTS};
+use crate::tree::{BeamBranch, BeamTree, GREEN_WOOD_DENSITY_KG_M3, SEGMENTS};
 use crate::wind::{WindConfig, WindField, drag_on_area_n};
 
 mod pose;
@@ -94,6 +94,37 @@ struct BranchState {
     dir: [f64; 2],
 }
 
+impl BranchState {
+    /// Branch `b` at rest with its time `step`, bending stiffness matrix `k` and the sum of
+    /// its segments' lever vectors.
+    fn at_rest(
+        step: Step,
+        b: &BeamBranch,
+        k: [[f64; 2]; 2],
+        lever_sum: Vector3<f64>,
+        tree: &BeamTree,
+    ) -> Self {
+        let c = b.v.cross(&b.u).cross(&lever_sum);
+        Self {
+            step,
+            inv_mass_per_kg: 1.0 / b.mass_kg.max(1e-12),
+            k,
+            u: b.u,
+            w: b.w,
+            angle_uw: [b.u.dot(&c), b.w.dot(&c)],
+            base_offset: match b.parent_segment {
+                Some(ps) => b.points[0] - tree.segment_start(ps),
+                None => b.points[0].coords,
+            },
+            x: [0.0; 2],
+            vel: [0.0; 2],
+            xs: 0.0,
+            vs: 0.0,
+            dir: [1.0, 0.0],
+        }
+    }
+}
+
 /// The pose of the tree at one instant.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pose {
@@ -108,6 +139,19 @@ pub struct Pose {
     pub angle_rad: Vec<f64>,
     /// Each branch's displacement (u, w), metres.
     pub displacement_m: Vec<[f64; 2]>,
+}
+
+impl Pose {
+    /// The tree at rest at time 0: `segments` identity joints, `branches` zero angles and
+    /// displacements.
+    fn at_rest(segments: usize, branches: usize) -> Self {
+        Self {
+            time_s: 0.0,
+            local: vec![UnitQuaternion::identity(); segments],
+            angle_rad: vec![0.0; branches],
+            displacement_m: vec![[0.0; 2]; branches],
+        }
+    }
 }
 
 /// What the integrator does to each branch at this frame rate.
@@ -151,6 +195,73 @@ pub struct Simulation {
     delays_for: (f64, usize),
     pose: Pose,
     report: IntegratorReport,
+}
+
+/// Branch `id`'s time step for `dynamics` at `dt_s` with `integrator` (its frequency below
+/// the frames' Nyquist frequency, the step stable), its effective errors added to `report`.
+fn branch_step(
+    id: usize,
+    d: &Dynamics,
+    integrator: Integrator,
+    dt_s: f64,
+    report: &mut IntegratorReport,
+) -> Result<Step> {
+    d.validate(&format!("branch {}", id))?;
+    let nyquist_hz = 0.5 / dt_s;
+    if d.frequency_hz > nyquist_hz {
+        return Err(AnimError::param(
+            "dynamics",
+            format!(
+                "branch {}: {} Hz is above the frame rate's Nyquist frequency ({nyquist_hz} Hz); \
+                 frames {dt_s} s apart cannot show it (raise the frame rate or check the dynamics)",
+                id, d.frequency_hz
+            ),
+        ));
+    }
+    let (step, substeps) =
+        step_for(d, integrator, dt_s).map_err(|substeps| AnimError::Unstable {
+            branch: id,
+            frequency_hz: d.frequency_hz,
+            damping_ratio: d.damping_ratio,
+            substeps,
+            dt_s,
+        })?;
+    report.substeps = report.substeps.max(substeps);
+    if let Some(e) = step.effective(dt_s) {
+        report.worst_frequency_error = report
+            .worst_frequency_error
+            .max((e.frequency_hz / d.frequency_hz - 1.0).abs());
+        if d.damping_ratio > 0.0 {
+            report.worst_damping_error = report
+                .worst_damping_error
+                .max((e.damping_ratio / d.damping_ratio - 1.0).abs());
+        }
+    }
+    Ok(step)
+}
+
+/// Per branch, the branches hanging on it as (its segment, child branch):
+/// `children[children_at[i]..children_at[i + 1]]`.
+fn children_of(tree: &BeamTree) -> (Vec<usize>, Vec<(usize, usize)>) {
+    let nb = tree.branches().len();
+    let mut children_at = vec![0usize; nb + 1];
+    for b in tree.branches() {
+        if let Some(ps) = b.parent_segment {
+            children_at[ps / SEGMENTS + 1] += 1;
+        }
+    }
+    for i in 0..nb {
+        children_at[i + 1] += children_at[i];
+    }
+    let mut children = vec![(0usize, 0usize); children_at[nb]];
+    let mut fill = children_at.clone();
+    for (bi, b) in tree.branches().iter().enumerate() {
+        if let Some(ps) = b.parent_segment {
+            children[fill[ps / SEGMENTS]] = (ps % SEGMENTS, bi);
+            fill[ps / SEGMENTS] += 1;
+        }
+    }
+    (children_at, children)
 }
 
 /// The deformed frame a branch hangs on: its parent's attachment segment's global rotation
@@ -232,7 +343,6 @@ impl Simulation {
     /// [`AnimError::InvalidTimeStep`], bad dynamics ([`AnimError::InvalidFrequency`],
     /// [`AnimError::InvalidDamping`]), a wrong number of them
     /// ([`AnimError::InvalidParameter`]), a bad wind, or [`AnimError::Unstable`].
-    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
     pub fn new(
         tree: BeamTree,
         dynamics: &[Dynamics],
@@ -267,37 +377,7 @@ impl Simulation {
             worst_frequency_error: 0.0,
         };
         for (bi, (b, d)) in tree.branches().iter().zip(dynamics).enumerate() {
-            d.validate(&format!("branch {}", b.id))?;
-            let nyquist_hz = 0.5 / dt_s;
-            if d.frequency_hz > nyquist_hz {
-                return Err(AnimError::param(
-                    "dynamics",
-                    format!(
-                        "branch {}: {} Hz is above the frame rate's Nyquist frequency ({nyquist_hz} Hz); \
-                         frames {dt_s} s apart cannot show it (raise the frame rate or check the dynamics)",
-                        b.id, d.frequency_hz
-                    ),
-                ));
-            }
-            let (step, substeps) =
-                step_for(d, config.integrator, dt_s).map_err(|substeps| AnimError::Unstable {
-                    branch: b.id,
-                    frequency_hz: d.frequency_hz,
-                    damping_ratio: d.damping_ratio,
-                    substeps,
-                    dt_s,
-                })?;
-            report.substeps = report.substeps.max(substeps);
-            if let Some(e) = step.effective(dt_s) {
-                report.worst_frequency_error = report
-                    .worst_frequency_error
-                    .max((e.frequency_hz / d.frequency_hz - 1.0).abs());
-                if d.damping_ratio > 0.0 {
-                    report.worst_damping_error = report
-                        .worst_damping_error
-                        .max((e.damping_ratio / d.damping_ratio - 1.0).abs());
-                }
-            }
+            let step = branch_step(b.id, d, config.integrator, dt_s, &mut report)?;
             let tip = b.points[SEGMENTS];
             let mut k = [[0.0; 2]; 2];
             let mut lever_sum = Vector3::zeros();
@@ -329,45 +409,11 @@ impl Simulation {
                 });
             }
             k[1][0] = k[0][1];
-            let c = b.v.cross(&b.u).cross(&lever_sum);
-            branches.push(BranchState {
-                step,
-                inv_mass_per_kg: 1.0 / b.mass_kg.max(1e-12),
-                k,
-                u: b.u,
-                w: b.w,
-                angle_uw: [b.u.dot(&c), b.w.dot(&c)],
-                base_offset: match b.parent_segment {
-                    Some(ps) => b.points[0] - tree.segment_start(ps),
-                    None => b.points[0].coords,
-                },
-                x: [0.0; 2],
-                vel: [0.0; 2],
-                xs: 0.0,
-                vs: 0.0,
-                dir: [1.0, 0.0],
-            });
+            branches.push(BranchState::at_rest(step, b, k, lever_sum, &tree));
         }
         let n = segments.len();
         let nb = branches.len();
-        // Per branch, the branches hanging on it: (its segment, child index).
-        let mut children_at = vec![0usize; nb + 1];
-        for b in tree.branches() {
-            if let Some(ps) = b.parent_segment {
-                children_at[ps / SEGMENTS + 1] += 1;
-            }
-        }
-        for i in 0..nb {
-            children_at[i + 1] += children_at[i];
-        }
-        let mut children = vec![(0usize, 0usize); children_at[nb]];
-        let mut fill = children_at.clone();
-        for (bi, b) in tree.branches().iter().enumerate() {
-            if let Some(ps) = b.parent_segment {
-                children[fill[ps / SEGMENTS]] = (ps % SEGMENTS, bi);
-                fill[ps / SEGMENTS] += 1;
-            }
-        }
+        let (children_at, children) = children_of(&tree);
         let pairable = (0..nb)
             .map(|i| {
                 tree.branches()
@@ -392,12 +438,7 @@ impl Simulation {
             dir: vec![Vector3::zeros(); n],
             delays: Vec::new(),
             delays_for: (0.0, 0),
-            pose: Pose {
-                time_s: 0.0,
-                local: vec![UnitQuaternion::identity(); n],
-                angle_rad: vec![0.0; nb],
-                displacement_m: vec![[0.0; 2]; nb],
-            },
+            pose: Pose::at_rest(n, nb),
             report,
         };
         sim.update_pose();
