@@ -290,7 +290,6 @@ fn bounds3(values: &[[f32; 3]]) -> (Vec<f32>, Vec<f32>) {
 /// # Errors
 /// [`AnimError::TooManyJoints`], [`AnimError::InvalidParameter`] for poses that are not of
 /// this tree, not finite or not in time order, or fewer than 3 sides.
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 pub fn glb_bytes(sim: &Simulation, poses: &[Pose], options: &GlbOptions) -> Result<Vec<u8>> {
     check_poses(sim, poses)?;
     if options.sides < 3 {
@@ -306,8 +305,6 @@ pub fn glb_bytes(sim: &Simulation, poses: &[Pose], options: &GlbOptions) -> Resu
             max: MAX_GLTF_JOINTS,
         });
     }
-    use gj::accessor::{ComponentType as C, Type as T};
-    use gj::buffer::Target;
     let mesh = tube(sim, options.sides);
     let mut root = gj::Root {
         asset: gj::Asset {
@@ -320,7 +317,21 @@ pub fn glb_bytes(sim: &Simulation, poses: &[Pose], options: &GlbOptions) -> Resu
         data: Vec::new(),
         views: Vec::new(),
     };
-    // Geometry.
+    let mesh_index = push_mesh(&mut root, &mut bin, &mesh, options);
+    let joint_nodes = push_skeleton(&mut root, &mut bin, sim, mesh_index);
+    push_clip(&mut root, &mut bin, poses, &joint_nodes, &options.clip_name);
+    container(root, bin)
+}
+
+/// The skinned tube: its vertex attributes, indices and bark material.
+fn push_mesh(
+    root: &mut gj::Root,
+    bin: &mut Bin,
+    mesh: &Tube,
+    options: &GlbOptions,
+) -> gj::Index<gj::Mesh> {
+    use gj::accessor::{ComponentType as C, Type as T};
+    use gj::buffer::Target;
     let v = bin.view(
         &le_f32(mesh.positions.iter().flatten().copied()),
         Some(Target::ArrayBuffer),
@@ -370,7 +381,7 @@ pub fn glb_bytes(sim: &Simulation, poses: &[Pose], options: &GlbOptions) -> Resu
     attributes.insert(Valid(gj::mesh::Semantic::Normals), normals);
     attributes.insert(Valid(gj::mesh::Semantic::Joints(0)), joints);
     attributes.insert(Valid(gj::mesh::Semantic::Weights(0)), weights);
-    let mesh_index = root.push(gj::Mesh {
+    root.push(gj::Mesh {
         extensions: None,
         extras: Default::default(),
         name: Some("tree".into()),
@@ -384,8 +395,19 @@ pub fn glb_bytes(sim: &Simulation, poses: &[Pose], options: &GlbOptions) -> Resu
             targets: None,
         }],
         weights: None,
-    });
-    // Joints: node 1 + s for segment s (node 0 carries the mesh).
+    })
+}
+
+/// One joint node per segment (node 1 + s; node 0 carries the mesh), the skin with its
+/// inverse bind matrices, and the scene; the joint nodes.
+fn push_skeleton(
+    root: &mut gj::Root,
+    bin: &mut Bin,
+    sim: &Simulation,
+    mesh_index: gj::Index<gj::Mesh>,
+) -> Vec<gj::Index<gj::Node>> {
+    use gj::accessor::{ComponentType as C, Type as T};
+    let n_joints = sim.tree().segment_count();
     let offsets = sim.rest_offsets();
     let parents = sim.parent_segments();
     let mut children: Vec<Vec<gj::Index<gj::Node>>> = vec![Vec::new(); n_joints];
@@ -449,7 +471,19 @@ pub fn glb_bytes(sim: &Simulation, poses: &[Pose], options: &GlbOptions) -> Resu
         nodes: scene_nodes,
     });
     root.scene = Some(scene);
-    // The clip: one time track, one rotation track per joint.
+    joint_nodes
+}
+
+/// The clip: one time track, one rotation track per joint.
+fn push_clip(
+    root: &mut gj::Root,
+    bin: &mut Bin,
+    poses: &[Pose],
+    joint_nodes: &[gj::Index<gj::Node>],
+    clip_name: &str,
+) {
+    use gj::accessor::{ComponentType as C, Type as T};
+    let n_joints = joint_nodes.len();
     let t0 = poses[0].time_s;
     let times: Vec<f32> = poses.iter().map(|p| (p.time_s - t0) as f32).collect();
     let (t_lo, t_hi) = (times[0], times[times.len() - 1]);
@@ -502,9 +536,13 @@ pub fn glb_bytes(sim: &Simulation, poses: &[Pose], options: &GlbOptions) -> Resu
         extensions: None,
         extras: Default::default(),
         channels,
-        name: Some(options.clip_name.clone()),
+        name: Some(clip_name.to_string()),
         samplers,
     });
+}
+
+/// The `.glb` container: header, JSON chunk, binary chunk.
+fn container(mut root: gj::Root, mut bin: Bin) -> Result<Vec<u8>> {
     pad4(&mut bin.data, 0);
     root.buffer_views = bin.views;
     root.push(gj::Buffer {
