@@ -92,8 +92,32 @@ pub fn parse_ply(bytes: &[u8]) -> Result<PointCloud> {
     parse_ply_at(bytes, memory_path())
 }
 
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 fn parse_ply_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
+    let (header_lines, pos) = header_lines(bytes, path)?;
+    let (encoding, elements) = parse_header(&header_lines, path)?;
+    let mut vertices = Vertices::new(&elements, path, bytes.len())?;
+    let data = &bytes[pos..];
+    match encoding {
+        Encoding::Ascii => read_ascii(data, &elements, path, &mut vertices)?,
+        Encoding::Little | Encoding::Big => read_binary(
+            data,
+            &elements,
+            path,
+            encoding == Encoding::Little,
+            &mut vertices,
+        )?,
+    }
+    Ok(PointCloud {
+        width: vertices.points.len() as u32,
+        height: 1,
+        points: vertices.points,
+        colors: vertices.colors,
+    })
+}
+
+/// The header's lines (after the file's first `\n`-ended lines up to `end_header`, which is
+/// not among them) and the offset of the body.
+fn header_lines(bytes: &[u8], path: &Path) -> Result<(Vec<String>, usize)> {
     let fmt = |what: String| KinectError::format(path, what);
     // The header is ASCII lines up to and including "end_header\n".
     let marker = b"end_header";
@@ -121,6 +145,12 @@ fn parse_ply_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
             return Err(fmt("header longer than 10000 lines".into()));
         }
     }
+    Ok((header_lines, pos))
+}
+
+/// The body's encoding and the elements the header declares.
+fn parse_header(header_lines: &[String], path: &Path) -> Result<(Encoding, Vec<Element>)> {
+    let fmt = |what: String| KinectError::format(path, what);
     if header_lines.first().map(|l| l.trim()) != Some("ply") {
         return Err(fmt("does not start with `ply`".into()));
     }
@@ -186,40 +216,72 @@ fn parse_ply_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
         }
     }
     let encoding = encoding.ok_or_else(|| fmt("no `format` line".into()))?;
-    let vertex_at = elements
-        .iter()
-        .position(|e| e.name == "vertex")
-        .ok_or_else(|| fmt("no `vertex` element".into()))?;
-    let find = |names: &[&str]| {
-        elements[vertex_at]
-            .properties
+    Ok((encoding, elements))
+}
+
+/// The vertex element's points (and colours) as they are read.
+struct Vertices<'a> {
+    path: &'a Path,
+    /// The vertex element's properties.
+    properties: &'a [Property],
+    /// Indices of x, y and z among them.
+    xyz: [usize; 3],
+    /// Indices of red, green and blue, when all three are there.
+    rgb: Option<[usize; 3]>,
+    points: Vec<Option<Point3<f64>>>,
+    colors: Option<Vec<[u8; 3]>>,
+}
+
+impl<'a> Vertices<'a> {
+    /// The reader of `elements`' vertex element: it must have x, y and z. `bytes` bounds the
+    /// allocation (a vertex takes at least 3 bytes).
+    fn new(elements: &'a [Element], path: &'a Path, bytes: usize) -> Result<Self> {
+        let fmt = |what: String| KinectError::format(path, what);
+        let vertex = elements
             .iter()
-            .position(|p| matches!(p, Property::Scalar(n, _) if names.contains(&n.as_str())))
-    };
-    let (Some(ix), Some(iy), Some(iz)) = (find(&["x"]), find(&["y"]), find(&["z"])) else {
-        return Err(fmt("the vertex element lacks an x, y or z property".into()));
-    };
-    let color_idx = match (
-        find(&["red", "r", "diffuse_red"]),
-        find(&["green", "g", "diffuse_green"]),
-        find(&["blue", "b", "diffuse_blue"]),
-    ) {
-        (Some(r), Some(g), Some(b)) => Some([r, g, b]),
-        _ => None,
-    };
-    let vcount = elements[vertex_at].count;
-    let mut points = Vec::with_capacity(vcount.min(bytes.len() / 3 + 1));
-    let mut colors = color_idx.map(|_| Vec::with_capacity(vcount.min(bytes.len() / 3 + 1)));
-    let data = &bytes[pos..];
-    let mut values: Vec<f64> = Vec::new();
-    let mut vertex = |values: &[f64], points: &mut Vec<Option<Point3<f64>>>, index: usize| {
+            .find(|e| e.name == "vertex")
+            .ok_or_else(|| fmt("no `vertex` element".into()))?;
+        let find = |names: &[&str]| {
+            vertex
+                .properties
+                .iter()
+                .position(|p| matches!(p, Property::Scalar(n, _) if names.contains(&n.as_str())))
+        };
+        let (Some(ix), Some(iy), Some(iz)) = (find(&["x"]), find(&["y"]), find(&["z"])) else {
+            return Err(fmt("the vertex element lacks an x, y or z property".into()));
+        };
+        let rgb = match (
+            find(&["red", "r", "diffuse_red"]),
+            find(&["green", "g", "diffuse_green"]),
+            find(&["blue", "b", "diffuse_blue"]),
+        ) {
+            (Some(r), Some(g), Some(b)) => Some([r, g, b]),
+            _ => None,
+        };
+        let capacity = vertex.count.min(bytes / 3 + 1);
+        Ok(Self {
+            path,
+            properties: &vertex.properties,
+            xyz: [ix, iy, iz],
+            rgb,
+            points: Vec::with_capacity(capacity),
+            colors: rgb.map(|_| Vec::with_capacity(capacity)),
+        })
+    }
+
+    /// Vertex `index` from its property `values`.
+    fn push(&mut self, values: &[f64], index: usize) -> Result<()> {
+        let [ix, iy, iz] = self.xyz;
         let p = Point3::new(values[ix], values[iy], values[iz]);
         if !p.iter().all(|c| c.is_finite()) {
-            return Err(fmt(format!("vertex {index} is not finite: {p:?}")));
+            return Err(KinectError::format(
+                self.path,
+                format!("vertex {index} is not finite: {p:?}"),
+            ));
         }
-        points.push(Some(p));
-        if let (Some(colors), Some([r, g, b])) = (colors.as_mut(), color_idx) {
-            let ty = |i: usize| match &elements[vertex_at].properties[i] {
+        self.points.push(Some(p));
+        if let (Some(colors), Some([r, g, b])) = (self.colors.as_mut(), self.rgb) {
+            let ty = |i: usize| match &self.properties[i] {
                 Property::Scalar(_, t) => *t,
                 Property::List(_, t) => *t,
             };
@@ -230,127 +292,139 @@ fn parse_ply_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
             ]);
         }
         Ok(())
-    };
-    match encoding {
-        Encoding::Ascii => {
-            let text =
-                std::str::from_utf8(data).map_err(|_| fmt("ASCII body is not text".into()))?;
-            let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-            for element in &elements {
-                for index in 0..element.count {
-                    let Some(line) = lines.next() else {
-                        return Err(element.truncated(path, index));
-                    };
-                    let mut tokens = line.split_whitespace();
-                    values.clear();
-                    for property in &element.properties {
-                        let mut next = |ty: Scalar| -> Result<f64> {
-                            let t = tokens.next().ok_or_else(|| {
-                                fmt(format!("{} {index}: too few values", element.name))
-                            })?;
-                            ty.parse(t).ok_or_else(|| {
-                                fmt(format!(
-                                    "{} {index}: {t:?} is not a valid {ty:?}",
-                                    element.name
-                                ))
-                            })
-                        };
-                        match property {
-                            Property::Scalar(_, ty) => values.push(next(*ty)?),
-                            Property::List(cty, ity) => {
-                                let n = next(*cty)?;
-                                if n < 0.0 {
-                                    return Err(fmt(format!(
-                                        "{} {index}: negative list length",
-                                        element.name
-                                    )));
-                                }
-                                for _ in 0..n as usize {
-                                    next(*ity)?;
-                                }
-                                values.push(n);
-                            }
-                        }
-                    }
-                    if tokens.next().is_some() {
-                        return Err(fmt(format!(
-                            "{} {index}: more values than properties",
+    }
+}
+
+/// An ASCII body: every element's lines, the vertices into `vertices`.
+fn read_ascii(
+    data: &[u8],
+    elements: &[Element],
+    path: &Path,
+    vertices: &mut Vertices<'_>,
+) -> Result<()> {
+    let fmt = |what: String| KinectError::format(path, what);
+    let mut values: Vec<f64> = Vec::new();
+    let text = std::str::from_utf8(data).map_err(|_| fmt("ASCII body is not text".into()))?;
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    for element in elements {
+        for index in 0..element.count {
+            let Some(line) = lines.next() else {
+                return Err(element.truncated(path, index));
+            };
+            let mut tokens = line.split_whitespace();
+            values.clear();
+            for property in &element.properties {
+                let mut next = |ty: Scalar| -> Result<f64> {
+                    let t = tokens
+                        .next()
+                        .ok_or_else(|| fmt(format!("{} {index}: too few values", element.name)))?;
+                    ty.parse(t).ok_or_else(|| {
+                        fmt(format!(
+                            "{} {index}: {t:?} is not a valid {ty:?}",
                             element.name
-                        )));
-                    }
-                    if element.name == "vertex" {
-                        vertex(&values, &mut points, index)?;
-                    }
-                }
-            }
-            let extra = lines.count();
-            if extra > 0 {
-                let last = elements.last().map(|e| e.count).unwrap_or(0);
-                return Err(KinectError::CountMismatch {
-                    path: path.to_path_buf(),
-                    what: "elements (last element)",
-                    declared: last,
-                    found: last + extra,
-                });
-            }
-        }
-        Encoding::Little | Encoding::Big => {
-            let le = encoding == Encoding::Little;
-            let mut at = 0usize;
-            for element in &elements {
-                for index in 0..element.count {
-                    values.clear();
-                    let truncated = || element.truncated(path, index);
-                    for property in &element.properties {
-                        match property {
-                            Property::Scalar(_, ty) => {
-                                let v = data
-                                    .get(at..)
-                                    .and_then(|b| ty.read(b, le))
-                                    .ok_or_else(truncated)?;
-                                at += ty.size();
-                                values.push(v);
-                            }
-                            Property::List(cty, ity) => {
-                                let n = data
-                                    .get(at..)
-                                    .and_then(|b| cty.read(b, le))
-                                    .ok_or_else(truncated)?;
-                                at += cty.size();
-                                if n < 0.0 {
-                                    return Err(fmt(format!(
-                                        "{} {index}: negative list length",
-                                        element.name
-                                    )));
-                                }
-                                let skip = (n as usize).saturating_mul(ity.size());
-                                at = at.saturating_add(skip);
-                                if at > data.len() {
-                                    return Err(truncated());
-                                }
-                                values.push(n);
-                            }
+                        ))
+                    })
+                };
+                match property {
+                    Property::Scalar(_, ty) => values.push(next(*ty)?),
+                    Property::List(cty, ity) => {
+                        let n = next(*cty)?;
+                        if n < 0.0 {
+                            return Err(fmt(format!(
+                                "{} {index}: negative list length",
+                                element.name
+                            )));
                         }
-                    }
-                    if element.name == "vertex" {
-                        vertex(&values, &mut points, index)?;
+                        for _ in 0..n as usize {
+                            next(*ity)?;
+                        }
+                        values.push(n);
                     }
                 }
             }
-            if at < data.len() {
+            if tokens.next().is_some() {
                 return Err(fmt(format!(
-                    "{} bytes after the last element the header declares",
-                    data.len() - at
+                    "{} {index}: more values than properties",
+                    element.name
                 )));
+            }
+            if element.name == "vertex" {
+                vertices.push(&values, index)?;
             }
         }
     }
-    Ok(PointCloud {
-        width: points.len() as u32,
-        height: 1,
-        points,
-        colors,
-    })
+    let extra = lines.count();
+    if extra > 0 {
+        let last = elements.last().map(|e| e.count).unwrap_or(0);
+        return Err(KinectError::CountMismatch {
+            path: path.to_path_buf(),
+            what: "elements (last element)",
+            declared: last,
+            found: last + extra,
+        });
+    }
+    Ok(())
+}
+
+/// A binary body (little- or big-endian): every element's records, the vertices into
+/// `vertices`.
+fn read_binary(
+    data: &[u8],
+    elements: &[Element],
+    path: &Path,
+    le: bool,
+    vertices: &mut Vertices<'_>,
+) -> Result<()> {
+    let fmt = |what: String| KinectError::format(path, what);
+    let mut values: Vec<f64> = Vec::new();
+    let mut at = 0usize;
+    for element in elements {
+        for index in 0..element.count {
+            values.clear();
+            let truncated = || element.truncated(path, index);
+            for property in &element.properties {
+                match property {
+                    Property::Scalar(_, ty) => {
+                        let v = data
+                            .get(at..)
+                            .and_then(|b| ty.read(b, le))
+                            .ok_or_else(truncated)?;
+                        at += ty.size();
+                        values.push(v);
+                    }
+                    Property::List(cty, ity) => {
+                        let n = data
+                            .get(at..)
+                            .and_then(|b| cty.read(b, le))
+                            .ok_or_else(truncated)?;
+                        at += cty.size();
+                        if n < 0.0 {
+                            return Err(fmt(format!(
+                                "{} {index}: negative list length",
+                                element.name
+                            )));
+                        }
+                        let skip = (n as usize).saturating_mul(ity.size());
+                        at = at.saturating_add(skip);
+                        if at > data.len() {
+                            return Err(truncated());
+                        }
+                        values.push(n);
+                    }
+                }
+            }
+            if element.name == "vertex" {
+                vertices.push(&values, index)?;
+            }
+        }
+    }
+    if at < data.len() {
+        return Err(fmt(format!(
+            "{} bytes after the last element the header declares",
+            data.len() - at
+        )));
+    }
+    Ok(())
 }
 
 /// Write the existing points of a cloud (organized clouds lose their grid: PLY has none) as
