@@ -71,8 +71,36 @@ pub fn parse_pcd(bytes: &[u8]) -> Result<PointCloud> {
     parse_pcd_at(bytes, memory_path())
 }
 
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 fn parse_pcd_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
+    let header = read_header(bytes, path)?;
+    let layout = Layout::new(header.clone(), path)?;
+    let data = &bytes[header.body_at..];
+    let xyz_rgb = match header.data_kind {
+        "ascii" => read_ascii(data, &layout, path)?,
+        "binary" => read_binary(data, &layout, path)?,
+        _ => read_compressed(data, &layout, path)?,
+    };
+    assemble(xyz_rgb, &layout, path)
+}
+
+/// A header's values as read, up to its DATA line.
+#[derive(Debug, Clone)]
+struct Header {
+    names: Vec<String>,
+    sizes: Vec<usize>,
+    types: Vec<char>,
+    counts: Vec<usize>,
+    width: Option<usize>,
+    height: Option<usize>,
+    points: Option<usize>,
+    /// `ascii`, `binary` or `binary_compressed`.
+    data_kind: &'static str,
+    /// Offset of the data after the DATA line.
+    body_at: usize,
+}
+
+/// The header's lines up to DATA.
+fn read_header(bytes: &[u8], path: &Path) -> Result<Header> {
     let fmt = |what: String| KinectError::format(path, what);
     let mut pos = 0;
     let mut names: Vec<String> = Vec::new();
@@ -80,7 +108,6 @@ fn parse_pcd_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
     let mut types: Vec<char> = Vec::new();
     let mut counts: Vec<usize> = Vec::new();
     let (mut width, mut height, mut points) = (None, None, None);
-    let data_kind;
     let mut lineno = 0;
     loop {
         let rest = &bytes[pos..];
@@ -133,214 +160,290 @@ fn parse_pcd_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
             "HEIGHT" => height = Some(one("HEIGHT")?),
             "POINTS" => points = Some(one("POINTS")?),
             "DATA" => {
-                data_kind = match args.first().map(|s| s.to_ascii_lowercase()).as_deref() {
+                let data_kind = match args.first().map(|s| s.to_ascii_lowercase()).as_deref() {
                     Some("ascii") => "ascii",
                     Some("binary") => "binary",
                     Some("binary_compressed") => "binary_compressed",
                     other => return Err(fmt(format!("line {lineno}: unknown DATA {other:?}"))),
                 };
-                break;
+                return Ok(Header {
+                    names,
+                    sizes,
+                    types,
+                    counts,
+                    width,
+                    height,
+                    points,
+                    data_kind,
+                    body_at: pos,
+                });
             }
             other => return Err(fmt(format!("line {lineno}: unknown header key {other:?}"))),
         }
     }
-    if names.is_empty() {
-        return Err(fmt("no FIELDS line".into()));
-    }
-    if counts.is_empty() {
-        counts = vec![1; names.len()];
-    }
-    if sizes.len() != names.len() || types.len() != names.len() || counts.len() != names.len() {
-        return Err(fmt(format!(
-            "FIELDS ({}), SIZE ({}), TYPE ({}) and COUNT ({}) must have one entry per field",
-            names.len(),
-            sizes.len(),
-            types.len(),
-            counts.len()
-        )));
-    }
-    let mut fields = Vec::with_capacity(names.len());
-    let mut offset = 0usize;
-    for k in 0..names.len() {
-        let ty = match (types[k], sizes[k]) {
-            ('F', 4) => Scalar::F32,
-            ('F', 8) => Scalar::F64,
-            ('I', 1) => Scalar::I8,
-            ('U', 1) => Scalar::U8,
-            ('I', 2) => Scalar::I16,
-            ('U', 2) => Scalar::U16,
-            ('I', 4) => Scalar::I32,
-            ('U', 4) => Scalar::U32,
-            (t, s) => {
-                return Err(KinectError::Unsupported {
-                    path: path.to_path_buf(),
-                    what: format!("field {:?} of TYPE {t} SIZE {s}", names[k]),
-                });
-            }
+}
+
+/// Where each point's values lie: the fields, the record size, the organisation and the
+/// fields that hold x, y, z and the packed colour.
+struct Layout {
+    fields: Vec<Field>,
+    record: usize,
+    width: usize,
+    height: usize,
+    /// Points, width x height.
+    n: usize,
+    xyz: [usize; 3],
+    rgb: Option<usize>,
+}
+
+impl Layout {
+    /// The layout the header declares: one SIZE, TYPE and COUNT per field, a supported type
+    /// for each, POINTS = WIDTH x HEIGHT, fields x, y and z.
+    fn new(mut h: Header, path: &Path) -> Result<Self> {
+        let fmt = |what: String| KinectError::format(path, what);
+        if h.names.is_empty() {
+            return Err(fmt("no FIELDS line".into()));
+        }
+        if h.counts.is_empty() {
+            h.counts = vec![1; h.names.len()];
+        }
+        if h.sizes.len() != h.names.len()
+            || h.types.len() != h.names.len()
+            || h.counts.len() != h.names.len()
+        {
+            return Err(fmt(format!(
+                "FIELDS ({}), SIZE ({}), TYPE ({}) and COUNT ({}) must have one entry per field",
+                h.names.len(),
+                h.sizes.len(),
+                h.types.len(),
+                h.counts.len()
+            )));
+        }
+        let mut fields = Vec::with_capacity(h.names.len());
+        let mut offset = 0usize;
+        for k in 0..h.names.len() {
+            let ty = match (h.types[k], h.sizes[k]) {
+                ('F', 4) => Scalar::F32,
+                ('F', 8) => Scalar::F64,
+                ('I', 1) => Scalar::I8,
+                ('U', 1) => Scalar::U8,
+                ('I', 2) => Scalar::I16,
+                ('U', 2) => Scalar::U16,
+                ('I', 4) => Scalar::I32,
+                ('U', 4) => Scalar::U32,
+                (t, s) => {
+                    return Err(KinectError::Unsupported {
+                        path: path.to_path_buf(),
+                        what: format!("field {:?} of TYPE {t} SIZE {s}", h.names[k]),
+                    });
+                }
+            };
+            fields.push(Field {
+                name: h.names[k].clone(),
+                ty,
+                count: h.counts[k],
+                offset,
+            });
+            offset = offset
+                .checked_add(ty.size().saturating_mul(h.counts[k]))
+                .ok_or_else(|| fmt("point record size overflows".into()))?;
+        }
+        let record = offset;
+        let width = h.width.ok_or_else(|| fmt("no WIDTH line".into()))?;
+        let height = h.height.unwrap_or(1);
+        let n = width
+            .checked_mul(height)
+            .ok_or_else(|| fmt("WIDTH * HEIGHT overflows".into()))?;
+        let points_declared = h.points.unwrap_or(n);
+        if points_declared != n {
+            return Err(KinectError::CountMismatch {
+                path: path.to_path_buf(),
+                what: "points (POINTS vs WIDTH x HEIGHT)",
+                declared: points_declared,
+                found: n,
+            });
+        }
+        if width > u32::MAX as usize || height > u32::MAX as usize {
+            return Err(fmt("WIDTH or HEIGHT exceeds u32".into()));
+        }
+        let find = |name: &str| fields.iter().position(|f| f.name == name);
+        let (Some(ix), Some(iy), Some(iz)) = (find("x"), find("y"), find("z")) else {
+            return Err(fmt("FIELDS lacks x, y or z".into()));
         };
-        fields.push(Field {
-            name: names[k].clone(),
-            ty,
-            count: counts[k],
-            offset,
-        });
-        offset = offset
-            .checked_add(ty.size().saturating_mul(counts[k]))
-            .ok_or_else(|| fmt("point record size overflows".into()))?;
+        let rgb = find("rgb").or_else(|| find("rgba"));
+        Ok(Self {
+            fields,
+            record,
+            width,
+            height,
+            n,
+            xyz: [ix, iy, iz],
+            rgb,
+        })
     }
-    let record = offset;
-    let width = width.ok_or_else(|| fmt("no WIDTH line".into()))?;
-    let height = height.unwrap_or(1);
-    let n = width
-        .checked_mul(height)
-        .ok_or_else(|| fmt("WIDTH * HEIGHT overflows".into()))?;
-    let points_declared = points.unwrap_or(n);
-    if points_declared != n {
+
+    /// The error for a file that holds `found` of the declared points.
+    fn truncated(&self, path: &Path, found: usize) -> KinectError {
+        KinectError::CountMismatch {
+            path: path.to_path_buf(),
+            what: "points",
+            declared: self.n,
+            found,
+        }
+    }
+}
+
+/// A point's coordinates and packed colour, before the finiteness check.
+type RawPoint = ([f64; 3], Option<[u8; 3]>);
+
+/// ASCII data: one line per point.
+fn read_ascii(data: &[u8], layout: &Layout, path: &Path) -> Result<Vec<RawPoint>> {
+    let fmt = |what: String| KinectError::format(path, what);
+    let Layout { fields, n, .. } = layout;
+    let (n, [ix, iy, iz], irgb) = (*n, layout.xyz, layout.rgb);
+    let truncated = |found: usize| layout.truncated(path, found);
+    let mut xyz_rgb = Vec::with_capacity(n.min(data.len()));
+    let text = std::str::from_utf8(data).map_err(|_| fmt("ASCII data is not text".into()))?;
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    for index in 0..n {
+        let line = lines.next().ok_or_else(|| truncated(index))?;
+        let tokens: Vec<&str> = line.split_whitespace().collect();
+        let per_point: usize = fields.iter().map(|f| f.count).sum();
+        if tokens.len() != per_point {
+            return Err(fmt(format!(
+                "point {index}: {} values, the header declares {per_point}",
+                tokens.len()
+            )));
+        }
+        let mut first_token = Vec::with_capacity(fields.len());
+        let mut t = 0;
+        for f in fields {
+            first_token.push(t);
+            t += f.count;
+        }
+        let value = |k: usize| -> Result<f64> {
+            let s = tokens[first_token[k]];
+            if s.eq_ignore_ascii_case("nan") {
+                return Ok(f64::NAN);
+            }
+            fields[k].ty.parse(s).ok_or_else(|| {
+                fmt(format!(
+                    "point {index}: {s:?} is not a valid {:?}",
+                    fields[k].ty
+                ))
+            })
+        };
+        let rgb = match irgb {
+            Some(k) => Some(
+                packed_rgb_text(tokens[first_token[k]], fields[k].ty).ok_or_else(|| {
+                    fmt(format!(
+                        "point {index}: rgb {:?} is not a packed colour",
+                        tokens[first_token[k]]
+                    ))
+                })?,
+            ),
+            None => None,
+        };
+        xyz_rgb.push(([value(ix)?, value(iy)?, value(iz)?], rgb));
+    }
+    let extra = lines.count();
+    if extra > 0 {
         return Err(KinectError::CountMismatch {
             path: path.to_path_buf(),
-            what: "points (POINTS vs WIDTH x HEIGHT)",
-            declared: points_declared,
-            found: n,
+            what: "points",
+            declared: n,
+            found: n + extra,
         });
     }
-    if width > u32::MAX as usize || height > u32::MAX as usize {
-        return Err(fmt("WIDTH or HEIGHT exceeds u32".into()));
+    Ok(xyz_rgb)
+}
+
+/// Binary data: one record per point, little-endian.
+fn read_binary(data: &[u8], layout: &Layout, path: &Path) -> Result<Vec<RawPoint>> {
+    let fmt = |what: String| KinectError::format(path, what);
+    let Layout {
+        fields, n, record, ..
+    } = layout;
+    let (n, record, [ix, iy, iz], irgb) = (*n, *record, layout.xyz, layout.rgb);
+    let truncated = |found: usize| layout.truncated(path, found);
+    let mut xyz_rgb = Vec::with_capacity(n.min(data.len()));
+    let needed = n
+        .checked_mul(record)
+        .ok_or_else(|| fmt("data size overflows".into()))?;
+    if data.len() < needed {
+        return Err(truncated(data.len() / record.max(1)));
     }
-    let find = |name: &str| fields.iter().position(|f| f.name == name);
-    let (Some(ix), Some(iy), Some(iz)) = (find("x"), find("y"), find("z")) else {
-        return Err(fmt("FIELDS lacks x, y or z".into()));
-    };
-    let irgb = find("rgb").or_else(|| find("rgba"));
-    let mut xyz_rgb = Vec::with_capacity(n.min(bytes.len()));
-    let data = &bytes[pos..];
-    let truncated = |found: usize| KinectError::CountMismatch {
-        path: path.to_path_buf(),
-        what: "points",
-        declared: n,
-        found,
-    };
-    match data_kind {
-        "ascii" => {
-            let text =
-                std::str::from_utf8(data).map_err(|_| fmt("ASCII data is not text".into()))?;
-            let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-            for index in 0..n {
-                let line = lines.next().ok_or_else(|| truncated(index))?;
-                let tokens: Vec<&str> = line.split_whitespace().collect();
-                let per_point: usize = fields.iter().map(|f| f.count).sum();
-                if tokens.len() != per_point {
-                    return Err(fmt(format!(
-                        "point {index}: {} values, the header declares {per_point}",
-                        tokens.len()
-                    )));
-                }
-                let mut first_token = Vec::with_capacity(fields.len());
-                let mut t = 0;
-                for f in &fields {
-                    first_token.push(t);
-                    t += f.count;
-                }
-                let value = |k: usize| -> Result<f64> {
-                    let s = tokens[first_token[k]];
-                    if s.eq_ignore_ascii_case("nan") {
-                        return Ok(f64::NAN);
-                    }
-                    fields[k].ty.parse(s).ok_or_else(|| {
-                        fmt(format!(
-                            "point {index}: {s:?} is not a valid {:?}",
-                            fields[k].ty
-                        ))
-                    })
-                };
-                let rgb = match irgb {
-                    Some(k) => Some(
-                        packed_rgb_text(tokens[first_token[k]], fields[k].ty).ok_or_else(|| {
-                            fmt(format!(
-                                "point {index}: rgb {:?} is not a packed colour",
-                                tokens[first_token[k]]
-                            ))
-                        })?,
-                    ),
-                    None => None,
-                };
-                xyz_rgb.push(([value(ix)?, value(iy)?, value(iz)?], rgb));
-            }
-            let extra = lines.count();
-            if extra > 0 {
-                return Err(KinectError::CountMismatch {
-                    path: path.to_path_buf(),
-                    what: "points",
-                    declared: n,
-                    found: n + extra,
-                });
-            }
-        }
-        "binary" => {
-            let needed = n
-                .checked_mul(record)
-                .ok_or_else(|| fmt("data size overflows".into()))?;
-            if data.len() < needed {
-                return Err(truncated(data.len() / record.max(1)));
-            }
-            if data.len() > needed {
-                return Err(fmt(format!(
-                    "{} bytes after the {n} points the header declares",
-                    data.len() - needed
-                )));
-            }
-            for index in 0..n {
-                let rec = &data[index * record..(index + 1) * record];
-                let get = |k: usize| {
-                    fields[k]
-                        .ty
-                        .read(&rec[fields[k].offset..], true)
-                        .unwrap_or(f64::NAN)
-                };
-                let rgb = irgb.map(|k| packed_rgb_bytes(&rec[fields[k].offset..]));
-                xyz_rgb.push(([get(ix), get(iy), get(iz)], rgb));
-            }
-        }
-        _ => {
-            let header = data.get(..8).ok_or_else(|| truncated(0))?;
-            let compressed =
-                u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize;
-            let uncompressed =
-                u32::from_le_bytes([header[4], header[5], header[6], header[7]]) as usize;
-            let needed = n
-                .checked_mul(record)
-                .ok_or_else(|| fmt("data size overflows".into()))?;
-            if uncompressed != needed {
-                return Err(KinectError::CountMismatch {
-                    path: path.to_path_buf(),
-                    what: "bytes of uncompressed point data",
-                    declared: needed,
-                    found: uncompressed,
-                });
-            }
-            let body = data.get(8..8 + compressed).ok_or_else(|| {
-                fmt(format!(
-                    "compressed data is {} bytes, the file holds {}",
-                    compressed,
-                    data.len().saturating_sub(8)
-                ))
-            })?;
-            let raw =
-                lzf_decompress(body, uncompressed).ok_or_else(|| fmt("corrupt LZF data".into()))?;
-            // Field-major layout: all values of field 0, then field 1, ...
-            let mut starts = Vec::with_capacity(fields.len());
-            let mut s = 0;
-            for f in &fields {
-                starts.push(s);
-                s += n * f.ty.size() * f.count;
-            }
-            for index in 0..n {
-                let at = |k: usize| starts[k] + index * fields[k].ty.size() * fields[k].count;
-                let get = |k: usize| fields[k].ty.read(&raw[at(k)..], true).unwrap_or(f64::NAN);
-                let rgb = irgb.map(|k| packed_rgb_bytes(&raw[at(k)..]));
-                xyz_rgb.push(([get(ix), get(iy), get(iz)], rgb));
-            }
-        }
+    if data.len() > needed {
+        return Err(fmt(format!(
+            "{} bytes after the {n} points the header declares",
+            data.len() - needed
+        )));
     }
+    for index in 0..n {
+        let rec = &data[index * record..(index + 1) * record];
+        let get = |k: usize| {
+            fields[k]
+                .ty
+                .read(&rec[fields[k].offset..], true)
+                .unwrap_or(f64::NAN)
+        };
+        let rgb = irgb.map(|k| packed_rgb_bytes(&rec[fields[k].offset..]));
+        xyz_rgb.push(([get(ix), get(iy), get(iz)], rgb));
+    }
+    Ok(xyz_rgb)
+}
+
+/// LZF-compressed binary data, field-major.
+fn read_compressed(data: &[u8], layout: &Layout, path: &Path) -> Result<Vec<RawPoint>> {
+    let fmt = |what: String| KinectError::format(path, what);
+    let Layout {
+        fields, n, record, ..
+    } = layout;
+    let (n, record, [ix, iy, iz], irgb) = (*n, *record, layout.xyz, layout.rgb);
+    let truncated = |found: usize| layout.truncated(path, found);
+    let mut xyz_rgb = Vec::with_capacity(n.min(data.len()));
+    let header = data.get(..8).ok_or_else(|| truncated(0))?;
+    let compressed = u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize;
+    let uncompressed = u32::from_le_bytes([header[4], header[5], header[6], header[7]]) as usize;
+    let needed = n
+        .checked_mul(record)
+        .ok_or_else(|| fmt("data size overflows".into()))?;
+    if uncompressed != needed {
+        return Err(KinectError::CountMismatch {
+            path: path.to_path_buf(),
+            what: "bytes of uncompressed point data",
+            declared: needed,
+            found: uncompressed,
+        });
+    }
+    let body = data.get(8..8 + compressed).ok_or_else(|| {
+        fmt(format!(
+            "compressed data is {} bytes, the file holds {}",
+            compressed,
+            data.len().saturating_sub(8)
+        ))
+    })?;
+    let raw = lzf_decompress(body, uncompressed).ok_or_else(|| fmt("corrupt LZF data".into()))?;
+    // Field-major layout: all values of field 0, then field 1, ...
+    let mut starts = Vec::with_capacity(fields.len());
+    let mut s = 0;
+    for f in fields {
+        starts.push(s);
+        s += n * f.ty.size() * f.count;
+    }
+    for index in 0..n {
+        let at = |k: usize| starts[k] + index * fields[k].ty.size() * fields[k].count;
+        let get = |k: usize| fields[k].ty.read(&raw[at(k)..], true).unwrap_or(f64::NAN);
+        let rgb = irgb.map(|k| packed_rgb_bytes(&raw[at(k)..]));
+        xyz_rgb.push(([get(ix), get(iy), get(iz)], rgb));
+    }
+    Ok(xyz_rgb)
+}
+
+/// The cloud: NaN coordinates are missing points, infinite ones an error.
+fn assemble(xyz_rgb: Vec<RawPoint>, layout: &Layout, path: &Path) -> Result<PointCloud> {
+    let fmt = |what: String| KinectError::format(path, what);
+    let irgb = layout.rgb;
     let mut cloud_points = Vec::with_capacity(xyz_rgb.len());
     let mut colors = irgb.map(|_| Vec::with_capacity(xyz_rgb.len()));
     for (index, ([x, y, z], rgb)) in xyz_rgb.into_iter().enumerate() {
@@ -355,8 +458,8 @@ fn parse_pcd_at(bytes: &[u8], path: &Path) -> Result<PointCloud> {
         }
     }
     Ok(PointCloud {
-        width: width as u32,
-        height: height as u32,
+        width: layout.width as u32,
+        height: layout.height as u32,
         points: cloud_points,
         colors,
     })
