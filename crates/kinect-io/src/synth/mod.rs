@@ -363,7 +363,6 @@ impl Renderer {
     /// # Errors
     /// [`KinectError::InvalidParameter`] for an invalid shape (non-positive radius, zero
     /// normal, ground height not finite).
-    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
     pub fn render(&self, scene: &Scene, seed: u64) -> Result<SynthFrame> {
         let config = &self.config;
         let cal = &config.calibration;
@@ -388,57 +387,9 @@ impl Renderer {
         let noise = &config.noise;
         let (w, h) = (dcam.width as usize, dcam.height as usize);
         let mut z_m: Vec<f64> = truth_z.iter().map(|z| z.unwrap_or(f64::NAN)).collect();
-        if noise.flying_pixel_probability > 0.0 {
-            let original = z_m.clone();
-            for v in 0..h {
-                for u in 0..w {
-                    let i = v * w + u;
-                    let z = original[i];
-                    if z.is_nan() {
-                        continue;
-                    }
-                    let mut far = None::<f64>;
-                    for (du, dv) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                        let (nu, nv) = (u as i64 + du, v as i64 + dv);
-                        if nu < 0 || nv < 0 || nu >= w as i64 || nv >= h as i64 {
-                            continue;
-                        }
-                        let zn = original[nv as usize * w + nu as usize];
-                        let zn = if zn.is_nan() { noise.max_depth_m } else { zn };
-                        if (zn - z).abs() > EDGE_JUMP_M
-                            && far.is_none_or(|f| (zn - z).abs() > (f - z).abs())
-                        {
-                            far = Some(zn);
-                        }
-                    }
-                    if let Some(zn) = far
-                        && rng.uniform() < noise.flying_pixel_probability
-                    {
-                        let mix = 0.2 + 0.6 * rng.uniform();
-                        z_m[i] = z + mix * (zn - z);
-                    }
-                }
-            }
-        }
+        flying_pixels(&mut z_m, (w, h), noise, &mut rng);
         let unit = cal.depth_unit_m;
-        let mut raw = vec![0u16; w * h];
-        for (i, z) in z_m.iter().enumerate() {
-            if z.is_nan() {
-                continue;
-            }
-            let sigma_mm = NOISE_MM[0] + NOISE_MM[1] * z + NOISE_MM[2] * z * z;
-            let noisy = z + noise.depth_noise_scale * sigma_mm * 1e-3 * rng.normal();
-            if noise.dropout_probability > 0.0 && rng.uniform() < noise.dropout_probability {
-                continue;
-            }
-            if !(noisy >= noise.min_depth_m && noisy <= noise.max_depth_m) {
-                continue;
-            }
-            let value = ((noisy - cal.depth_offset_m) / unit).round();
-            if value >= 1.0 && value <= f64::from(u16::MAX) {
-                raw[i] = value as u16;
-            }
-        }
+        let raw = quantise_depth(&z_m, cal, noise, &mut rng);
         let depth = DepthImage::new(dcam.width, dcam.height, unit, raw)?;
 
         // Colour camera.
@@ -492,6 +443,82 @@ impl Renderer {
             markers,
         })
     }
+}
+
+/// Flying pixels: with `noise`'s probability, a pixel at a depth edge takes a depth between
+/// its own and its farthest neighbour's (the Kinect V2's mixed returns at edges).
+fn flying_pixels(
+    z_m: &mut [f64],
+    (w, h): (usize, usize),
+    noise: &SensorNoise,
+    rng: &mut SplitMix64,
+) {
+    if noise.flying_pixel_probability > 0.0 {
+        let original = z_m.to_vec();
+        for v in 0..h {
+            for u in 0..w {
+                let i = v * w + u;
+                let z = original[i];
+                if z.is_nan() {
+                    continue;
+                }
+                let mut far = None::<f64>;
+                for (du, dv) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                    let (nu, nv) = (u as i64 + du, v as i64 + dv);
+                    if nu < 0 || nv < 0 || nu >= w as i64 || nv >= h as i64 {
+                        continue;
+                    }
+                    let zn = original[nv as usize * w + nu as usize];
+                    let zn = if zn.is_nan() { noise.max_depth_m } else { zn };
+                    if (zn - z).abs() > EDGE_JUMP_M
+                        && far.is_none_or(|f| (zn - z).abs() > (f - z).abs())
+                    {
+                        far = Some(zn);
+                    }
+                }
+                if let Some(zn) = far
+                    && rng.uniform() < noise.flying_pixel_probability
+                {
+                    let mix = 0.2 + 0.6 * rng.uniform();
+                    z_m[i] = z + mix * (zn - z);
+                }
+            }
+        }
+    }
+}
+
+/// Depth in metres (NaN: no return) to the sensor's raw 16-bit values: axial noise growing
+/// with depth, dropouts, the range limits and the depth unit (0: no depth).
+fn quantise_depth(
+    z_m: &[f64],
+    cal: &Calibration,
+    noise: &SensorNoise,
+    rng: &mut SplitMix64,
+) -> Vec<u16> {
+    let (w, h) = (
+        cal.depth_camera.width as usize,
+        cal.depth_camera.height as usize,
+    );
+    let unit = cal.depth_unit_m;
+    let mut raw = vec![0u16; w * h];
+    for (i, z) in z_m.iter().enumerate() {
+        if z.is_nan() {
+            continue;
+        }
+        let sigma_mm = NOISE_MM[0] + NOISE_MM[1] * z + NOISE_MM[2] * z * z;
+        let noisy = z + noise.depth_noise_scale * sigma_mm * 1e-3 * rng.normal();
+        if noise.dropout_probability > 0.0 && rng.uniform() < noise.dropout_probability {
+            continue;
+        }
+        if !(noisy >= noise.min_depth_m && noisy <= noise.max_depth_m) {
+            continue;
+        }
+        let value = ((noisy - cal.depth_offset_m) / unit).round();
+        if value >= 1.0 && value <= f64::from(u16::MAX) {
+            raw[i] = value as u16;
+        }
+    }
+    raw
 }
 
 /// Render one frame of `scene` as the configured camera sees it (noise seeded by
