@@ -30,15 +30,28 @@ pub(super) struct Bases {
     pub(super) animation: PathBuf,
 }
 
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 pub(super) fn make_bases(root: &Path) -> Bases {
-    // A pull-and-release record.
+    Bases {
+        signal: signal_base(root),
+        angles: angles_base(root),
+        frames: frames_base(root),
+        recording: recording_base(root),
+        clouds: clouds_base(root),
+        animation: animation_base(root),
+    }
+}
+
+/// A pull-and-release record.
+fn signal_base(root: &Path) -> PathBuf {
     let signal = root.join("base_signal");
     std::fs::create_dir_all(&signal).unwrap();
     let record = DecaySpec::paper_branch().generate().unwrap();
     std::fs::write(signal.join("signal.csv"), signal_to_csv(&record)).unwrap();
+    signal
+}
 
-    // Marker trajectories and their hierarchy.
+/// Marker trajectories and their hierarchy.
+fn angles_base(root: &Path) -> PathBuf {
     let angles = root.join("base_angles");
     std::fs::create_dir_all(&angles).unwrap();
     let tree = treemocap::branch_angles::synthetic::two_level();
@@ -58,8 +71,11 @@ pub(super) fn make_bases(root: &Path) -> Bases {
         serde_json::json!({ "markers": markers }).to_string(),
     )
     .unwrap();
+    angles
+}
 
-    // Frames of a red marker moving on a textured background, and its window.
+/// Frames of a red marker moving on a textured background, and its window.
+fn frames_base(root: &Path) -> PathBuf {
     let frames = root.join("base_frames");
     std::fs::create_dir_all(frames.join("frames")).unwrap();
     for k in 0..6u32 {
@@ -86,8 +102,11 @@ pub(super) fn make_bases(root: &Path) -> Bases {
         r#"[{"id": "A", "x": 16, "y": 20, "w": 9, "h": 9}]"#,
     )
     .unwrap();
+    frames
+}
 
-    // A tiny native recording: a wall at 1.5 m with a red patch, 8 frames, and its markers.
+/// A tiny native recording: a wall at 1.5 m with a red patch, 8 frames, and its markers.
+fn recording_base(root: &Path) -> PathBuf {
     let recording = root.join("base_recording");
     let rec_dir = recording.join("rec");
     let mut calibration = Calibration::kinect_v2();
@@ -135,18 +154,25 @@ pub(super) fn make_bases(root: &Path) -> Bases {
         .to_string(),
     )
     .unwrap();
+    recording
+}
 
-    // A point cloud of a small tree in three formats.
-    let clouds = root.join("base_clouds");
-    std::fs::create_dir_all(&clouds).unwrap();
-    let tree = SyntheticConfig {
+/// The small synthetic tree (cloud and skeleton) of the cloud and animation bases.
+fn small_tree() -> treemocap::space_colonize::synthetic::SyntheticTree {
+    SyntheticConfig {
         seed: 5,
         points: 2_000,
         ..Default::default()
     }
     .generate()
-    .unwrap();
-    let cloud = PointCloud::from_points(tree.points.clone());
+    .unwrap()
+}
+
+/// A point cloud of a small tree in three formats.
+fn clouds_base(root: &Path) -> PathBuf {
+    let clouds = root.join("base_clouds");
+    std::fs::create_dir_all(&clouds).unwrap();
+    let cloud = PointCloud::from_points(small_tree().points);
     write_xyz(&cloud, &clouds.join("tree.xyz")).unwrap();
     write_ply(&cloud, &clouds.join("tree.ply"), PlyFormat::Ascii).unwrap();
     write_ply(
@@ -156,13 +182,16 @@ pub(super) fn make_bases(root: &Path) -> Bases {
     )
     .unwrap();
     write_pcd(&cloud, &clouds.join("tree.pcd"), PcdWriteOptions::default()).unwrap();
+    clouds
+}
 
-    // A skeleton and dynamics for the animation.
+/// A skeleton and dynamics for the animation.
+fn animation_base(root: &Path) -> PathBuf {
     let animation = root.join("base_animation");
     std::fs::create_dir_all(&animation).unwrap();
     std::fs::write(
         animation.join("skeleton.json"),
-        tree.skeleton.to_json().unwrap(),
+        small_tree().skeleton.to_json().unwrap(),
     )
     .unwrap();
     std::fs::write(
@@ -175,13 +204,5 @@ pub(super) fn make_bases(root: &Path) -> Bases {
         .to_string(),
     )
     .unwrap();
-
-    Bases {
-        signal,
-        angles,
-        frames,
-        recording,
-        clouds,
-        animation,
-    }
+    animation
 }

@@ -180,7 +180,6 @@ pub(super) fn option_cases(corpus: &mut Corpus, b: &Bases) {
     }
 }
 
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
 pub(super) fn build_corpus(root: &Path) -> Corpus {
     let b = make_bases(root);
     let mut corpus = Corpus {
@@ -189,8 +188,6 @@ pub(super) fn build_corpus(root: &Path) -> Corpus {
         cases: Vec::new(),
         baselines: Vec::new(),
     };
-    let out = |d: &Path, name: &str| d.join(name);
-
     file_cases(
         &mut corpus,
         "estimate_modal",
@@ -200,17 +197,6 @@ pub(super) fn build_corpus(root: &Path) -> Corpus {
         8,
         4,
     );
-    let angles_args = |d: &Path| {
-        (
-            os(&[
-                &d.join("trajectories.csv"),
-                &d.join("hierarchy.json"),
-                &"--out",
-                &out(d, "angles.csv"),
-            ]),
-            vec![out(d, "angles.csv")],
-        )
-    };
     for file in ["trajectories.csv", "hierarchy.json"] {
         file_cases(
             &mut corpus,
@@ -222,17 +208,6 @@ pub(super) fn build_corpus(root: &Path) -> Corpus {
             3,
         );
     }
-    let track_args = |d: &Path| {
-        (
-            os(&[
-                &d.join("frames"),
-                &d.join("init.json"),
-                &"--out",
-                &out(d, "tracks.json"),
-            ]),
-            vec![out(d, "tracks.json")],
-        )
-    };
     for file in ["init.json", "frames/f000.jpg", "frames/f003.jpg"] {
         file_cases(
             &mut corpus,
@@ -244,18 +219,6 @@ pub(super) fn build_corpus(root: &Path) -> Corpus {
             0,
         );
     }
-    let cloud_args = |d: &Path| {
-        (
-            os(&[
-                &d.join("rec"),
-                &"--frame",
-                &"1",
-                &"--out",
-                &out(d, "cloud.ply"),
-            ]),
-            vec![out(d, "cloud.ply")],
-        )
-    };
     for file in [
         "rec/calibration.json",
         "rec/frames.csv",
@@ -272,45 +235,7 @@ pub(super) fn build_corpus(root: &Path) -> Corpus {
             1,
         );
     }
-    for (file, flips, places) in [
-        ("tree.xyz", 4, 2),
-        ("tree.ply", 4, 2),
-        ("tree_binary.ply", 6, 0),
-        ("tree.pcd", 4, 1),
-    ] {
-        let f = file.to_owned();
-        file_cases(
-            &mut corpus,
-            "reconstruct_tree",
-            &b.clouds,
-            file,
-            &move |d: &Path| {
-                (
-                    os(&[&d.join(&f), &"--out-skeleton", &out(d, "s.json")]),
-                    vec![out(d, "s.json")],
-                )
-            },
-            flips,
-            places,
-        );
-    }
-    let anim_args = |d: &Path| {
-        (
-            os(&[
-                &"--skeleton",
-                &d.join("skeleton.json"),
-                &"--dynamics",
-                &d.join("dynamics.json"),
-                &"--seconds",
-                &"0.5",
-                &"--out",
-                &out(d, "tree.glb"),
-                &"--bvh",
-                &out(d, "tree.bvh"),
-            ]),
-            vec![out(d, "tree.glb"), out(d, "tree.bvh")],
-        )
-    };
+    reconstruct_cases(&mut corpus, &b);
     for (file, flips, places) in [("skeleton.json", 3, 1), ("dynamics.json", 4, 2)] {
         file_cases(
             &mut corpus,
@@ -322,19 +247,6 @@ pub(super) fn build_corpus(root: &Path) -> Corpus {
             places,
         );
     }
-    let pipeline_args = |d: &Path| {
-        (
-            os(&[
-                &"--recording",
-                &d.join("rec"),
-                &"--markers",
-                &d.join("markers.json"),
-                &"--out-dir",
-                &out(d, "report"),
-            ]),
-            vec![],
-        )
-    };
     for file in ["markers.json", "rec/color/000000.jpg"] {
         file_cases(
             &mut corpus,
@@ -346,7 +258,39 @@ pub(super) fn build_corpus(root: &Path) -> Corpus {
             0,
         );
     }
-    // Frames of changing size: one colour frame of a recording and one tracked frame.
+    size_cases(&mut corpus, &b);
+    option_cases(&mut corpus, &b);
+    corpus
+}
+
+/// reconstruct_tree on each format of the cloud base.
+fn reconstruct_cases(corpus: &mut Corpus, b: &Bases) {
+    for (file, flips, places) in [
+        ("tree.xyz", 4, 2),
+        ("tree.ply", 4, 2),
+        ("tree_binary.ply", 6, 0),
+        ("tree.pcd", 4, 1),
+    ] {
+        let f = file.to_owned();
+        file_cases(
+            corpus,
+            "reconstruct_tree",
+            &b.clouds,
+            file,
+            &move |d: &Path| {
+                (
+                    os(&[&d.join(&f), &"--out-skeleton", &d.join("s.json")]),
+                    vec![d.join("s.json")],
+                )
+            },
+            flips,
+            places,
+        );
+    }
+}
+
+/// Frames of changing size: one colour frame of a recording and one tracked frame.
+fn size_cases(corpus: &mut Corpus, b: &Bases) {
     let dir = corpus.fresh(&b.recording);
     let small = RgbImage::from_pixel(17, 11, Rgb([1, 2, 3]));
     small.save(dir.join("rec/color/000001.jpg")).unwrap();
@@ -372,6 +316,78 @@ pub(super) fn build_corpus(root: &Path) -> Corpus {
         baseline: None,
         outputs,
     });
-    option_cases(&mut corpus, &b);
-    corpus
+}
+
+/// branch_angles on a case directory: the trajectories and hierarchy, the angles written.
+fn angles_args(d: &Path) -> (Vec<OsString>, Vec<PathBuf>) {
+    (
+        os(&[
+            &d.join("trajectories.csv"),
+            &d.join("hierarchy.json"),
+            &"--out",
+            &d.join("angles.csv"),
+        ]),
+        vec![d.join("angles.csv")],
+    )
+}
+
+/// track_markers on a case directory: the frames and windows, the tracks written.
+fn track_args(d: &Path) -> (Vec<OsString>, Vec<PathBuf>) {
+    (
+        os(&[
+            &d.join("frames"),
+            &d.join("init.json"),
+            &"--out",
+            &d.join("tracks.json"),
+        ]),
+        vec![d.join("tracks.json")],
+    )
+}
+
+/// capture_to_cloud on a case directory: frame 1 of the recording, the cloud written.
+fn cloud_args(d: &Path) -> (Vec<OsString>, Vec<PathBuf>) {
+    (
+        os(&[
+            &d.join("rec"),
+            &"--frame",
+            &"1",
+            &"--out",
+            &d.join("cloud.ply"),
+        ]),
+        vec![d.join("cloud.ply")],
+    )
+}
+
+/// animate_tree on a case directory: the skeleton and dynamics, half a second, glTF and BVH written.
+fn anim_args(d: &Path) -> (Vec<OsString>, Vec<PathBuf>) {
+    (
+        os(&[
+            &"--skeleton",
+            &d.join("skeleton.json"),
+            &"--dynamics",
+            &d.join("dynamics.json"),
+            &"--seconds",
+            &"0.5",
+            &"--out",
+            &d.join("tree.glb"),
+            &"--bvh",
+            &d.join("tree.bvh"),
+        ]),
+        vec![d.join("tree.glb"), d.join("tree.bvh")],
+    )
+}
+
+/// pipeline on a case directory: the recording and its markers, the report folder.
+fn pipeline_args(d: &Path) -> (Vec<OsString>, Vec<PathBuf>) {
+    (
+        os(&[
+            &"--recording",
+            &d.join("rec"),
+            &"--markers",
+            &d.join("markers.json"),
+            &"--out-dir",
+            &d.join("report"),
+        ]),
+        vec![],
+    )
 }
