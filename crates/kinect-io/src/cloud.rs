@@ -340,7 +340,7 @@ impl CloudBuilder {
     ///
     /// # Errors
     /// As [`CloudBuilder::build`].
-    #[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
+    #[allow(clippy::too_many_lines)] // longer than 100 lines: the per-pixel loop is rewritten by issue 23 (clouds at twice Open3D's speed); split then
     pub fn build_into(
         &mut self,
         depth: &DepthImage,

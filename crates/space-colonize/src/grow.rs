@@ -134,7 +134,7 @@ fn leaves_cloud(prep: &Prepared, base: &[f64; 3], c: &[f64; 3], step: f64) -> bo
 }
 
 /// Grow the skeleton graph from the root or from the seed nodes.
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
+#[allow(clippy::too_many_lines)] // longer than 100 lines: growth is rewritten by issue 22 (growth that follows wood); split then
 pub(crate) fn grow(prep: &Prepared, pass: Pass<'_>) -> Result<Growth> {
     let p = &prep.params;
     let n = prep.pts.len();

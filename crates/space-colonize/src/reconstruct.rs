@@ -112,7 +112,7 @@ pub fn reconstruct(points: &[Point3<f64>], config: &ColonizeConfig) -> Result<Re
 ///
 /// # Errors
 /// As [`reconstruct`].
-#[allow(clippy::too_many_lines)] // longer than 100 lines; to be split by concept (issue 21)
+#[allow(clippy::too_many_lines)] // longer than 100 lines: the stages change with issue 22 (growth that follows wood); split then
 pub fn reconstruct_with_progress(
     points: &[Point3<f64>],
     config: &ColonizeConfig,
