@@ -488,8 +488,9 @@ impl Pipeline {
             .collect()
     }
 
-    /// The measured dynamics onto the rebuilt tree, then the wind animation. Returns the
-    /// animation and the number of its branches that got measured dynamics.
+    /// The measured dynamics onto the rebuilt tree (the trusted ones, below the animation's
+    /// Nyquist frequency), then the wind animation. Returns the animation and the number of
+    /// its branches that got measured dynamics.
     fn animate(
         &self,
         measured: &Measured,
@@ -516,7 +517,13 @@ impl Pipeline {
                 .branches
                 .iter()
                 .filter_map(|b| {
-                    let m = b.ours?;
+                    // Only what the report trusts drives the animation, and only what its
+                    // frame rate can show; the other branches take their level's or the
+                    // paper's dynamics.
+                    let m = b.ours.filter(|m| {
+                        b.quality.ours_trusted
+                            && m.frequency_hz < 0.5 * self.config.animation_fps_hz
+                    })?;
                     Some(MeasuredDynamics {
                         position: rest_position(&b.id)?,
                         frequency_hz: m.frequency_hz,

@@ -82,6 +82,7 @@ impl Tracker {
             confidence: measured.confidence,
         };
         state.last_center = measured.center;
+        state.home = measured.center;
         state.filter.position = measured.center;
         if self.config.context_check {
             state.context = Some(Template::learn(

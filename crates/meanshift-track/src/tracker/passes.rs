@@ -124,7 +124,7 @@ impl Tracker {
             candidates.extend(scored);
             seen.push(blobs);
         }
-        let chosen = self.assign_places(&candidates, undecided, claimed);
+        let chosen = self.assign_places(&candidates, undecided, claimed, quick);
         // A marker found far outside its normal gate has manoeuvred: the filter takes the
         // manoeuvre, so the measurement sets the new velocity.
         let frame_side = f64::from(self.width.max(self.height));
@@ -288,6 +288,7 @@ impl Tracker {
         candidates: &[Candidate],
         undecided: &[usize],
         claimed: &[Claim],
+        quick: &[Option<Scored>],
     ) -> Vec<Option<(Measured, Option<f64>)>> {
         let mut places: Vec<(Point2<f64>, f64)> = Vec::new();
         let mut column = Vec::with_capacity(candidates.len());
@@ -320,7 +321,23 @@ impl Tracker {
                             && same_look(&self.markers[o], &self.markers[c.marker])
                             && in_gate(o, p)
                     });
-                let extra = if owned { OWNED_COST } else { 0.0 };
+                // A marker whose quick pass saw it at its prediction, only dimmer than the
+                // confidence a track needs, is most likely still there: a jump out of its
+                // normal gate must look much better than staying unmatched for a frame.
+                let dim_here = quick[c.marker].is_some_and(|q| {
+                    q.measured.confidence >= DIM_SHARE * self.config.min_confidence
+                        && in_gate(c.marker, q.measured.center)
+                });
+                // (Both this and the home cost are for colour markers: gray targets in rows
+                // swing across each other's places and are guided by their neighbours.)
+                let colour = self.markers[c.marker].template.is_none();
+                let leaves = colour && dim_here && !in_gate(c.marker, p);
+                let extra = if owned || leaves { OWNED_COST } else { 0.0 }
+                    + if colour && self.at_another_home(c.marker, p) {
+                        HOME_COST
+                    } else {
+                        0.0
+                    };
                 let slot = &mut cost[r * cols + j];
                 *slot = slot.min(c.cost + extra);
             }
@@ -357,6 +374,21 @@ impl Tracker {
                 Some((best.0.measured, best.0.context))
             })
             .collect()
+    }
+
+    /// Whether `p` lies at another marker's home (within [`HOME_NEAR_WINDOWS`]; whatever its
+    /// look: a marker's colour learnt from a half-hidden first window may not match) beyond
+    /// marker `i`'s reach ([`HOME_MARGIN_WINDOWS`] past the farthest it has been found from its own
+    /// home).
+    fn at_another_home(&self, i: usize, p: Point2<f64>) -> bool {
+        let m = &self.markers[i];
+        let beyond = (p - m.home).norm() > m.reach_px + HOME_MARGIN_WINDOWS * window_px(m);
+        beyond
+            && self
+                .markers
+                .iter()
+                .enumerate()
+                .any(|(j, o)| j != i && (p - o.home).norm() < HOME_NEAR_WINDOWS * window_px(o))
     }
 
     /// What a found marker saw in its gate and was not is a look-alike to remember, unless
@@ -399,4 +431,47 @@ struct Gate {
     outside: bool,
     /// Search radius, pixels.
     radius_px: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::Rgb;
+
+    fn frame() -> RgbImage {
+        RgbImage::from_fn(192, 64, |x, y| {
+            let on = |cx: u32| x.abs_diff(cx) <= 4 && y.abs_diff(30) <= 4;
+            if on(20) || on(150) {
+                Rgb([215, 25, 30])
+            } else {
+                Rgb([100, 110, 95])
+            }
+        })
+    }
+
+    #[test]
+    fn another_markers_home_beyond_ones_reach_is_not_ones_place() -> Result<()> {
+        let inits = [
+            MarkerInit {
+                id: "A".into(),
+                window: PixelRect::new(15, 25, 11, 11),
+            },
+            MarkerInit {
+                id: "B".into(),
+                window: PixelRect::new(145, 25, 11, 11),
+            },
+        ];
+        let mut t = Tracker::new(TrackerConfig::default(), &frame(), None, &inits)?;
+        // B's home, far beyond anywhere A has been.
+        assert!(t.at_another_home(0, Point2::new(151.0, 32.0)));
+        // Near A's own home, or nowhere near B's: A's to take.
+        assert!(!t.at_another_home(0, Point2::new(40.0, 30.0)));
+        assert!(!t.at_another_home(0, Point2::new(100.0, 30.0)));
+        // B's own home is B's.
+        assert!(!t.at_another_home(1, Point2::new(150.0, 30.0)));
+        // Once A has been found that far (its swing reaches there), it may be A.
+        t.markers[0].reach_px = 125.0;
+        assert!(!t.at_another_home(0, Point2::new(151.0, 32.0)));
+        Ok(())
+    }
 }

@@ -19,6 +19,8 @@ impl MarkerState {
             swing: Swing::default(),
             acceleration_px: ACCELERATION_MIN_PX,
             last_center: center,
+            home: center,
+            reach_px: 0.0,
             reference: Reference {
                 mass: 1.0,
                 pixel_weight: 255.0,
@@ -213,6 +215,7 @@ impl MarkerState {
     ) -> Observation {
         let innovation = (q.center - self.filter.position).norm_squared();
         self.filter.update(q.center, MEASUREMENT_PX);
+        self.reach_px = self.reach_px.max((q.center - self.home).norm());
         let side = window_px(self);
         if self.misses >= STOP_AFTER_MISSES && innovation > side * side {
             // Found again after frames of coasting, a window or more from where the coasting

@@ -1,0 +1,180 @@
+//! One frame's decisions after the quick pass: which results are accepted as tracked, and
+//! what the frame teaches (look-alikes, how markers move together, merged markers, each
+//! marker's observation).
+
+use super::*;
+
+impl Tracker {
+    /// The quick pass's results accepted as `tracked` (confident, in the normal gate, alike,
+    /// on the swing line when crowded, nobody else's place), nearest to their prediction
+    /// first; the places they claim, and the markers left undecided for detection.
+    pub(super) fn accept_quick(
+        &self,
+        quick: &[Option<Scored>],
+        predictions: &[Point2<f64>],
+    ) -> (Vec<Option<Found>>, Vec<Claim>, Vec<usize>) {
+        let n = self.markers.len();
+        let d2: Vec<f64> = (0..n)
+            .map(|i| {
+                let m = &self.markers[i];
+                quick[i].as_ref().map_or(f64::INFINITY, |q| {
+                    (q.measured.center - m.filter.position).norm_squared() / m.gate_var
+                })
+            })
+            .collect();
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| d2[a].total_cmp(&d2[b]));
+        let mut results: Vec<Option<Found>> = vec![None; n];
+        let mut claimed: Vec<Claim> = Vec::new();
+        let mut undecided = Vec::new();
+        for &i in &order {
+            let m = &self.markers[i];
+            let Some(q) = quick[i] else {
+                undecided.push(i);
+                continue;
+            };
+            if !self.config.recovery {
+                results[i] = Some((q.measured, TrackStatus::Tracked, q.context));
+                continue;
+            }
+            let c = q.measured.center;
+            // Identity is in doubt only after a jump of more than half a window, the reach of
+            // plain mean-shift: a slower marker cannot have swapped with a look-alike.
+            let jumped = (c - m.last_center).norm() > 0.5 * window_px(m);
+            let familiar =
+                !jumped || !m.context_informative() || q.context.is_none_or(|v| m.familiar(v));
+            let accept = m.misses == 0
+                && q.measured.confidence >= self.config.min_confidence
+                && m.typical(q.measured.confidence)
+                && d2[i] <= GATE_CHI2
+                && !m.on_distractor(c)
+                && familiar
+                && (!crowded(&self.markers, i)
+                    || m.swing
+                        .line()
+                        .is_none_or(|l| l.offset(c).abs() <= LINE_ACCEPT_SPREADS))
+                && !(self.config.exclusive
+                    && (taken(&self.markers, i, c, &claimed)
+                        || nearer_to_other(&self.markers, i, c, predictions)));
+            if accept {
+                claimed.push((i, q.measured.holds, c));
+                results[i] = Some((q.measured, TrackStatus::Tracked, q.context));
+            } else {
+                undecided.push(i);
+            }
+        }
+        (results, claimed, undecided)
+    }
+
+    /// What a found marker saw near it and was not is a look-alike to remember, unless it
+    /// is some marker's place.
+    pub(super) fn learn_look_alikes(
+        &mut self,
+        results: &[Option<Found>],
+        rejected: &[Vec<(Point2<f64>, PixelRect)>],
+        predictions: &[Point2<f64>],
+    ) {
+        let places_now: Vec<Point2<f64>> = predictions
+            .iter()
+            .copied()
+            .chain(results.iter().flatten().map(|r| r.0.center))
+            .collect();
+        for (i, result) in results.iter().enumerate() {
+            let Some((q, _, _)) = result else { continue };
+            let side = window_px(&self.markers[i]);
+            for &(p, bounds) in &rejected[i] {
+                if (p - q.center).norm() > side && places_now.iter().all(|c| (c - p).norm() > side)
+                {
+                    remember_distractor(&mut self.markers[i], p, bounds, side);
+                }
+            }
+        }
+    }
+
+    /// How alike the markers found in this frame and the last have moved.
+    pub(super) fn learn_coherence(&mut self, results: &[Option<Found>]) {
+        let n = self.markers.len();
+        let moved: Vec<Option<Vector2<f64>>> = results
+            .iter()
+            .zip(&self.markers)
+            .map(|(r, m)| {
+                r.as_ref()
+                    .filter(|_| m.last_status.found())
+                    .map(|(q, _, _)| q.center - m.last_center)
+            })
+            .collect();
+        for (a, da) in moved.iter().enumerate() {
+            for (b, db) in moved.iter().enumerate().skip(a + 1) {
+                if let (Some(da), Some(db)) = (da, db) {
+                    self.coherence[a * n + b].learn(*da, *db);
+                    self.coherence[b * n + a] = self.coherence[a * n + b];
+                }
+            }
+        }
+    }
+
+    /// A marker not found where a found marker of its look now is has merged with it (two
+    /// markers of one colour crossing): it moves with that marker until they part, rather
+    /// than coasting away and being lost.
+    pub(super) fn merged_markers(
+        &self,
+        results: &[Option<Found>],
+        predictions: &[Point2<f64>],
+    ) -> Vec<bool> {
+        let n = self.markers.len();
+        (0..n)
+            .map(|i| {
+                let m = &self.markers[i];
+                let reach = MERGED_WINDOWS * window_px(m);
+                results[i].is_none()
+                    && (0..n).any(|j| {
+                        j != i
+                            && same_look(m, &self.markers[j])
+                            && results[j]
+                                .as_ref()
+                                .is_some_and(|(q, _, _)| (q.center - predictions[i]).norm() < reach)
+                    })
+            })
+            .collect()
+    }
+
+    /// Each marker's observation of this frame from its result (found, merged or missed),
+    /// with what a found marker teaches its appearance, surroundings and template.
+    pub(super) fn record(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        results: Vec<Option<Found>>,
+        merged: &[bool],
+    ) {
+        let (width, height) = (self.width, self.height);
+        let frame_index = self.tracks.first().map_or(0, |t| t.observations.len()) as u64;
+        for (i, result) in results.into_iter().enumerate() {
+            let m = &mut self.markers[i];
+            let observation = match result {
+                Some((q, status, context)) => {
+                    let status = if status == TrackStatus::Tracked && !m.last_status.found() {
+                        TrackStatus::Recovered
+                    } else {
+                        status
+                    };
+                    let o = m.found(q, status, &self.config, depth, frame_index);
+                    m.learn_appearance(q.confidence, context);
+                    if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
+                        t.update(frame, q.center, CONTEXT_RATE, &mut self.patch);
+                    }
+                    if let Some(t) = m.template.as_mut()
+                        && status == TrackStatus::Tracked
+                        && q.confidence >= TEMPLATE_UPDATE_CONFIDENCE
+                    {
+                        t.update(frame, q.center, TEMPLATE_RATE, &mut self.patch);
+                    }
+                    o
+                }
+                None if merged[i] => m.merged((width, height)),
+                None => m.missed(&self.config, (width, height)),
+            };
+            self.tracks[i].observations.push(observation);
+        }
+    }
+}
