@@ -282,6 +282,24 @@ impl Layout {
         })
     }
 
+    /// Bytes of binary point data the header declares.
+    fn data_bytes(&self, path: &Path) -> Result<usize> {
+        self.n
+            .checked_mul(self.record)
+            .ok_or_else(|| KinectError::format(path, "data size overflows"))
+    }
+
+    /// A point's coordinates and packed colour from the bytes where each field starts
+    /// (`at(k)`: field `k`'s value and what follows it). A value that cannot be read is NaN.
+    fn raw_point<'d>(&self, at: impl Fn(usize) -> &'d [u8]) -> RawPoint {
+        let get = |k: usize| self.fields[k].ty.read(at(k), true).unwrap_or(f64::NAN);
+        let [ix, iy, iz] = self.xyz;
+        (
+            [get(ix), get(iy), get(iz)],
+            self.rgb.map(|k| packed_rgb_bytes(at(k))),
+        )
+    }
+
     /// The error for a file that holds `found` of the declared points.
     fn truncated(&self, path: &Path, found: usize) -> KinectError {
         KinectError::CountMismatch {
@@ -360,54 +378,36 @@ fn read_ascii(data: &[u8], layout: &Layout, path: &Path) -> Result<Vec<RawPoint>
 
 /// Binary data: one record per point, little-endian.
 fn read_binary(data: &[u8], layout: &Layout, path: &Path) -> Result<Vec<RawPoint>> {
-    let fmt = |what: String| KinectError::format(path, what);
-    let Layout {
-        fields, n, record, ..
-    } = layout;
-    let (n, record, [ix, iy, iz], irgb) = (*n, *record, layout.xyz, layout.rgb);
-    let truncated = |found: usize| layout.truncated(path, found);
-    let mut xyz_rgb = Vec::with_capacity(n.min(data.len()));
-    let needed = n
-        .checked_mul(record)
-        .ok_or_else(|| fmt("data size overflows".into()))?;
+    let needed = layout.data_bytes(path)?;
+    let record = layout.record;
     if data.len() < needed {
-        return Err(truncated(data.len() / record.max(1)));
+        return Err(layout.truncated(path, data.len() / record.max(1)));
     }
     if data.len() > needed {
-        return Err(fmt(format!(
-            "{} bytes after the {n} points the header declares",
-            data.len() - needed
-        )));
+        return Err(KinectError::format(
+            path,
+            format!(
+                "{} bytes after the {} points the header declares",
+                data.len() - needed,
+                layout.n
+            ),
+        ));
     }
-    for index in 0..n {
-        let rec = &data[index * record..(index + 1) * record];
-        let get = |k: usize| {
-            fields[k]
-                .ty
-                .read(&rec[fields[k].offset..], true)
-                .unwrap_or(f64::NAN)
-        };
-        let rgb = irgb.map(|k| packed_rgb_bytes(&rec[fields[k].offset..]));
-        xyz_rgb.push(([get(ix), get(iy), get(iz)], rgb));
-    }
-    Ok(xyz_rgb)
+    Ok((0..layout.n)
+        .map(|index| {
+            let rec = &data[index * record..(index + 1) * record];
+            layout.raw_point(|k| &rec[layout.fields[k].offset..])
+        })
+        .collect())
 }
 
 /// LZF-compressed binary data, field-major.
 fn read_compressed(data: &[u8], layout: &Layout, path: &Path) -> Result<Vec<RawPoint>> {
     let fmt = |what: String| KinectError::format(path, what);
-    let Layout {
-        fields, n, record, ..
-    } = layout;
-    let (n, record, [ix, iy, iz], irgb) = (*n, *record, layout.xyz, layout.rgb);
-    let truncated = |found: usize| layout.truncated(path, found);
-    let mut xyz_rgb = Vec::with_capacity(n.min(data.len()));
-    let header = data.get(..8).ok_or_else(|| truncated(0))?;
+    let header = data.get(..8).ok_or_else(|| layout.truncated(path, 0))?;
     let compressed = u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize;
     let uncompressed = u32::from_le_bytes([header[4], header[5], header[6], header[7]]) as usize;
-    let needed = n
-        .checked_mul(record)
-        .ok_or_else(|| fmt("data size overflows".into()))?;
+    let needed = layout.data_bytes(path)?;
     if uncompressed != needed {
         return Err(KinectError::CountMismatch {
             path: path.to_path_buf(),
@@ -425,19 +425,21 @@ fn read_compressed(data: &[u8], layout: &Layout, path: &Path) -> Result<Vec<RawP
     })?;
     let raw = lzf_decompress(body, uncompressed).ok_or_else(|| fmt("corrupt LZF data".into()))?;
     // Field-major layout: all values of field 0, then field 1, ...
-    let mut starts = Vec::with_capacity(fields.len());
+    let n = layout.n;
+    let mut starts = Vec::with_capacity(layout.fields.len());
     let mut s = 0;
-    for f in fields {
+    for f in &layout.fields {
         starts.push(s);
         s += n * f.ty.size() * f.count;
     }
-    for index in 0..n {
-        let at = |k: usize| starts[k] + index * fields[k].ty.size() * fields[k].count;
-        let get = |k: usize| fields[k].ty.read(&raw[at(k)..], true).unwrap_or(f64::NAN);
-        let rgb = irgb.map(|k| packed_rgb_bytes(&raw[at(k)..]));
-        xyz_rgb.push(([get(ix), get(iy), get(iz)], rgb));
-    }
-    Ok(xyz_rgb)
+    Ok((0..n)
+        .map(|index| {
+            layout.raw_point(|k| {
+                let f = &layout.fields[k];
+                &raw[starts[k] + index * f.ty.size() * f.count..]
+            })
+        })
+        .collect())
 }
 
 /// The cloud: NaN coordinates are missing points, infinite ones an error.

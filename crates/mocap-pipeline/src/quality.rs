@@ -8,6 +8,7 @@ use nalgebra::{Point3, Vector3};
 use serde::Serialize;
 
 use crate::analysis::{BranchResult, JUMP_M};
+use crate::stats::median;
 
 /// The quality behind a branch's numbers: what the tracker, the lift and the fit saw inside
 /// the branch's test window (the whole record without one), and whether each estimate can
@@ -282,13 +283,10 @@ pub(crate) fn judge_identity(
         .zip(child.iter().zip(parent))
         .filter_map(|(t, (c, p))| Some((*t, c.as_ref()? - p.as_ref()?)))
         .collect();
-    let median = |v: &[Vector3<f64>]| {
-        let axis = |k: usize| {
-            let mut a: Vec<f64> = v.iter().map(|r| r[k]).collect();
-            a.sort_by(f64::total_cmp);
-            0.5 * (a[(a.len() - 1) / 2] + a[a.len() / 2])
-        };
-        Vector3::new(axis(0), axis(1), axis(2))
+    // Per-coordinate median (positions are finite: a NaN would give `None` and no verdict).
+    let centre = |v: &[Vector3<f64>]| -> Option<Vector3<f64>> {
+        let axis = |k: usize| median(&mut v.iter().map(|r| r[k]).collect::<Vec<f64>>());
+        Some(Vector3::new(axis(0)?, axis(1)?, axis(2)?))
     };
     let first: Vec<Vector3<f64>> = relative
         .iter()
@@ -300,15 +298,14 @@ pub(crate) fn judge_identity(
         .filter(|(t, _)| (w0..=w1).contains(t))
         .map(|r| r.1)
         .collect();
-    if first.is_empty() || inside.is_empty() {
+    let (Some(reference), Some(inside)) = (centre(&first), centre(&inside)) else {
         return;
-    }
-    let reference = median(&first);
+    };
     let chord_m = reference.norm();
     if chord_m.is_nan() || chord_m <= 0.0 {
         return;
     }
-    let moved_m = (median(&inside) - reference).norm();
+    let moved_m = (inside - reference).norm();
     let drift = moved_m / chord_m;
     result.quality.parent_offset_drift = Some(drift);
     if drift > MAX_PARENT_OFFSET_DRIFT {

@@ -304,40 +304,15 @@ impl Tracker {
         }
         let cols = places.len();
         let mut cost = vec![f64::INFINITY; undecided.len() * cols];
-        // A place inside another undecided marker's normal gate is that marker's by motion:
-        // a colour marker that could reach it only by a manoeuvre pays for taking it. (Gray
-        // targets in rows are guided by their neighbours instead, which this would fight.)
-        let in_gate = |i: usize, p: Point2<f64>| {
-            let m = &self.markers[i];
-            (p - m.filter.position).norm_squared() <= GATE_CHI2 * m.gate_var
-        };
         for (c, &j) in candidates.iter().zip(&column) {
             if let Some(r) = undecided.iter().position(|&i| i == c.marker) {
-                let p = places[j].0;
-                let owned = self.markers[c.marker].template.is_none()
-                    && !in_gate(c.marker, p)
-                    && undecided.iter().any(|&o| {
-                        o != c.marker
-                            && same_look(&self.markers[o], &self.markers[c.marker])
-                            && in_gate(o, p)
-                    });
-                // A marker whose quick pass saw it at its prediction, only dimmer than the
-                // confidence a track needs, is most likely still there: a jump out of its
-                // normal gate must look much better than staying unmatched for a frame.
-                let dim_here = quick[c.marker].is_some_and(|q| {
-                    q.measured.confidence >= DIM_SHARE * self.config.min_confidence
-                        && in_gate(c.marker, q.measured.center)
-                });
-                // (Both this and the home cost are for colour markers: gray targets in rows
-                // swing across each other's places and are guided by their neighbours.)
-                let colour = self.markers[c.marker].template.is_none();
-                let leaves = colour && dim_here && !in_gate(c.marker, p);
-                let extra = if owned || leaves { OWNED_COST } else { 0.0 }
-                    + if colour && self.at_another_home(c.marker, p) {
-                        HOME_COST
-                    } else {
-                        0.0
-                    };
+                // Gray targets in rows swing across each other's places and are guided by
+                // their neighbours instead, which these costs would fight.
+                let extra = if self.markers[c.marker].template.is_none() {
+                    self.colour_cost(c.marker, places[j].0, undecided, quick)
+                } else {
+                    0.0
+                };
                 let slot = &mut cost[r * cols + j];
                 *slot = slot.min(c.cost + extra);
             }
@@ -374,6 +349,46 @@ impl Tracker {
                 Some((best.0.measured, best.0.context))
             })
             .collect()
+    }
+
+    /// Whether `p` lies in marker `i`'s normal gate.
+    fn in_normal_gate(&self, i: usize, p: Point2<f64>) -> bool {
+        let m = &self.markers[i];
+        (p - m.filter.position).norm_squared() <= GATE_CHI2 * m.gate_var
+    }
+
+    /// The extra cost of colour marker `i` taking place `p`:
+    /// - a place inside another undecided same-look marker's normal gate is that marker's by
+    ///   motion: reaching it only by a manoeuvre costs [`OWNED_COST`];
+    /// - a marker whose quick pass saw it at its prediction, only dimmer than a track needs,
+    ///   is most likely still there: leaving its normal gate costs [`OWNED_COST`] too;
+    /// - another marker's home beyond this one's reach costs [`HOME_COST`].
+    fn colour_cost(
+        &self,
+        i: usize,
+        p: Point2<f64>,
+        undecided: &[usize],
+        quick: &[Option<Scored>],
+    ) -> f64 {
+        let m = &self.markers[i];
+        let leaving = !self.in_normal_gate(i, p);
+        let owned = undecided
+            .iter()
+            .any(|&o| o != i && same_look(&self.markers[o], m) && self.in_normal_gate(o, p));
+        let dim_here = quick[i].is_some_and(|q| {
+            q.measured.confidence >= DIM_SHARE * self.config.min_confidence
+                && self.in_normal_gate(i, q.measured.center)
+        });
+        let jump = if leaving && (owned || dim_here) {
+            OWNED_COST
+        } else {
+            0.0
+        };
+        jump + if self.at_another_home(i, p) {
+            HOME_COST
+        } else {
+            0.0
+        }
     }
 
     /// Whether `p` lies at another marker's home (within [`HOME_NEAR_WINDOWS`]; whatever its
