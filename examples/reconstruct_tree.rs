@@ -9,6 +9,8 @@
 //! `"max_distance_m"`, `"within_1cm"`, `"within_2cm"`, `"within_5cm"` as shares of points,
 //! `"length_near_cloud"` as a share of model length, `"max_model_gap_m"`,
 //! `"branches_by_order"`), `"nodes"`, `"branches"`, `"total_length_m"`, `"volume_l"` and
+//! `"fidelity"` (issue 22's measure, the one the anchors AdTree and TreeQSM are compared by:
+//! `"mean_distance_m"`, `"within_2cm"`, `"model_near_cloud"`, `"axis_length_m"`),
 //! `"seconds"` (reconstruction time without file I/O or metrics), plus the `"parameters"` used
 //! and what `"growth"` did. Progress goes to stderr.
 //!
@@ -24,8 +26,9 @@ use treemocap::kinect_io::read_point_cloud;
 use treemocap::nalgebra::Point3;
 use treemocap::space_colonize::synthetic::{SkeletonError, SyntheticConfig, skeleton_error};
 use treemocap::space_colonize::{
-    ColonizeConfig, DEFAULT_MESH_SIDES, GrowthReport, Metrics, Parameters, Reconstruction, Stage,
-    cylinders, cylinders_to_csv, metrics, reconstruct_with_progress, tube_mesh,
+    ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, GrowthReport, Metrics, Parameters,
+    Reconstruction, Stage, cylinders, cylinders_to_csv, fidelity, metrics,
+    reconstruct_with_progress, tube_mesh,
 };
 
 mod common;
@@ -72,6 +75,7 @@ struct Report {
     branches_by_order: Vec<usize>,
     #[serde(flatten)]
     metrics: Metrics,
+    fidelity: Fidelity,
     seconds: f64,
     parameters: Parameters,
     growth: GrowthReport,
@@ -114,6 +118,7 @@ fn report(
         cylinders: cylinders(&model.skeleton).len(),
         branches_by_order: model.branches_by_order(),
         metrics: metrics(points, &model.skeleton),
+        fidelity: fidelity(points, &model.skeleton),
         seconds,
         parameters: model.parameters,
         growth: model.growth,

@@ -31,6 +31,8 @@
 //! - [`metrics`]: point-to-surface distances (mean, median, p95, shares within 1/2/5 cm),
 //!   the share of model length near the cloud, length and volume of the wood (each branch
 //!   from its parent's surface, as TreeQSM counts it: [`Skeleton::inside_parent_m`]).
+//! - [`fidelity`]: the measure models of other tools are compared by (edges as truncated
+//!   cones between their nodes' radii; needs nothing but nodes and radii).
 //! - [`cylinders`] (TreeQSM-style table, [`cylinders_to_csv`]) and [`tube_mesh`] (OBJ, PLY).
 //! - [`synthetic`] trees with a known skeleton, and [`synthetic::skeleton_error`].
 //!
@@ -54,6 +56,7 @@ mod circle;
 mod cloud;
 mod config;
 mod error;
+mod fidelity;
 mod geometry;
 mod grow;
 mod metrics;
@@ -73,6 +76,7 @@ pub use reconstruct::{
 };
 pub use skeleton::{Branch, MAX_INSIDE_RADII, Skeleton, SkeletonNode, skeleton_nodes_from_json};
 
+pub use fidelity::{CANDIDATE_EDGES, Fidelity, MODEL_SAMPLE_M, fidelity};
 pub use geometry::{
     Cylinder, DEFAULT_MESH_SIDES, MAX_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv,
     tube_mesh,
