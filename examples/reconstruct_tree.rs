@@ -1,7 +1,7 @@
 //! A static tree model (skeleton, radii, mesh, cylinders) from a point cloud, with its fidelity.
 //!
 //! ```text
-//! cargo run --release --example reconstruct_tree -- <CLOUD> [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv]
+//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv]
 //! ```
 //!
 //! `CLOUD`: XYZ text, PLY or PCD (kinect-io's readers), metres, Z up. Prints one JSON object:
@@ -26,7 +26,7 @@ use treemocap::kinect_io::read_point_cloud;
 use treemocap::nalgebra::Point3;
 use treemocap::space_colonize::synthetic::{SkeletonError, SyntheticConfig, skeleton_error};
 use treemocap::space_colonize::{
-    ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, GrowthReport, Metrics, Parameters,
+    ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, Growth, GrowthReport, Metrics, Parameters,
     Reconstruction, Stage, cylinders, cylinders_to_csv, fidelity, metrics,
     reconstruct_with_progress, tube_mesh,
 };
@@ -53,6 +53,19 @@ struct Args {
     /// The cylinder table, CSV (id,parent,start_x..z,axis_x..z,length,radius,branch,order)
     #[arg(long = "out-cylinders", value_name = "FILE")]
     cylinders: Option<PathBuf>,
+    /// How the skeleton is grown: `colonization` (space colonization, the default) or
+    /// `levels` (geodesic level sets: follows the points, better on leafy and sparse scans)
+    #[arg(long, value_name = "METHOD", default_value = "colonization", value_parser = growth_method)]
+    growth: Growth,
+}
+
+/// A growth method by name.
+fn growth_method(text: &str) -> Result<Growth, String> {
+    match text {
+        "colonization" => Ok(Growth::Colonization),
+        "levels" => Ok(Growth::LevelSets),
+        _ => Err(format!("{text}: must be `colonization` or `levels`")),
+    }
 }
 
 /// A mesh file name: .obj or .ply.
@@ -83,7 +96,10 @@ struct Report {
     truth: Option<SkeletonError>,
 }
 
-fn run(points: &[Point3<f64>]) -> Result<(Reconstruction, f64), Box<dyn std::error::Error>> {
+fn run(
+    points: &[Point3<f64>],
+    growth: Growth,
+) -> Result<(Reconstruction, f64), Box<dyn std::error::Error>> {
     let t = Instant::now();
     let mut progress = |s: Stage| {
         eprintln!(
@@ -91,14 +107,18 @@ fn run(points: &[Point3<f64>]) -> Result<(Reconstruction, f64), Box<dyn std::err
             t.elapsed().as_secs_f64(),
             match s {
                 Stage::Prepare => "preparing the cloud (spacing, trunk radius, outliers)",
-                Stage::Grow => "growing (space colonization)",
+                Stage::Grow => "growing the skeleton",
                 Stage::Refine => "refining (tips, centring, smoothing)",
                 Stage::Radii => "radii, twig pass, pruning",
                 _ => "working",
             }
         );
     };
-    let model = reconstruct_with_progress(points, &ColonizeConfig::default(), &mut progress)?;
+    let config = ColonizeConfig {
+        growth,
+        ..ColonizeConfig::default()
+    };
+    let model = reconstruct_with_progress(points, &config, &mut progress)?;
     let seconds = t.elapsed().as_secs_f64();
     eprintln!("[{seconds:6.2} s] done; measuring the model against the cloud");
     Ok((model, seconds))
@@ -152,7 +172,7 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             ("synthetic".to_string(), tree.points, Some(tree.skeleton))
         }
     };
-    let (model, seconds) = run(&points).map_err(|e| format!("{name}: {e}"))?;
+    let (model, seconds) = run(&points, args.growth).map_err(|e| format!("{name}: {e}"))?;
     let error = truth.as_ref().map(|t| skeleton_error(&model.skeleton, t));
     if let Some(p) = &args.skeleton {
         model.skeleton.write_json(p)?;

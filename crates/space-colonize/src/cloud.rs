@@ -8,8 +8,9 @@ use nalgebra::{Matrix3, Point3};
 
 use crate::circle::fit_circle;
 use crate::config::{
-    ColonizeConfig, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, MAX_GAP_INFLUENCES,
-    MIN_KILL_SPACINGS, MIN_STEP_PER_KILL, Parameters, STEP_SPACINGS,
+    ColonizeConfig, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, LEVEL_BIN_SPACINGS,
+    MAX_GAP_INFLUENCES, MAX_PATCH_M, MIN_KILL_SPACINGS, MIN_LEVEL_BIN_M, MIN_STEP_PER_KILL,
+    PATCH_BINS, Parameters, STEP_SPACINGS,
 };
 use crate::error::{ColonizeError, Result};
 
@@ -163,7 +164,15 @@ fn derive(
         None => [fit.centre[0], fit.centre[1], fit.z_min],
     };
     let n = pts.len();
+    let bin_m = config
+        .bin_m
+        .unwrap_or((LEVEL_BIN_SPACINGS * spacing_m).max(MIN_LEVEL_BIN_M));
     Ok(Parameters {
+        growth: config.growth,
+        bin_m,
+        patch_m: config
+            .patch_m
+            .unwrap_or((PATCH_BINS * bin_m).min(MAX_PATCH_M)),
         spacing_m,
         trunk_radius_m,
         trunk_radius_fitted: fitted,

@@ -27,6 +27,39 @@ pub const INFLUENCE_PER_KILL: f64 = 2.75;
 /// Largest gap growth bridges, in influence radii (an occluded trunk stretch of a sparse
 /// scan, `adtree/tree13.xyz`, is about 2 influence radii).
 pub const MAX_GAP_INFLUENCES: f64 = 8.0;
+/// Level-set bin width in point spacings (see [`Growth::LevelSets`]): on the AdTree clouds
+/// (tree7, tree13, Paris_Luxembourg_1) 1 spacing keeps 2–10 % more points within 2 cm of
+/// the model than 1.5 and 2.5.
+pub const LEVEL_BIN_SPACINGS: f64 = 1.0;
+/// Narrowest level-set bin, metres: on the leaf-off coffee tree (9.7 mm spacing) bins of
+/// one spacing split thin rings of dense scans into arcs that become parallel chains (the
+/// length +80 %); 1.5 cm gives +9 %.
+pub const MIN_LEVEL_BIN_M: f64 = 0.015;
+/// Widest patch that is not a ring, in bins,
+pub const PATCH_BINS: f64 = 2.0;
+/// ... and in metres: a leaf patch wider than this leaves its points more than 2 cm (the
+/// comparison's fidelity bound) from the node at its centre.
+pub const MAX_PATCH_M: f64 = 0.03;
+
+/// How the skeleton graph is grown.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[non_exhaustive]
+pub enum Growth {
+    /// Geodesic level sets over a neighbour graph of the points (Xu, Gossett & Chen 2007):
+    /// every node is the centre of a patch of points and every edge joins two patches that
+    /// touch, so the model follows the points and ends in leaf clumps instead of crossing
+    /// crowns. Better on leafy and sparse scans (on the AdTree clouds it beats AdTree on
+    /// tree7, and on the point figures of tree13 and Paris_Luxembourg_1; see
+    /// `docs/validation.md`), but where a bin is thinner than the local point spacing
+    /// (thick trunks sampled more sparsely than the twigs) the rings break into arcs that
+    /// become parallel chains: the synthetic trees' length comes out ×1.7–2.3.
+    LevelSets,
+    /// Space colonization (Runions et al. 2007), the paper's method and the default: the
+    /// nodes grow toward the mean direction of their attractors, which in a leafy crown
+    /// runs through the air.
+    Colonization,
+}
+
 /// Pipe-model exponent (the issue: on real scans 2.5 matched TreeQSM's volume within 5 %,
 /// 2 gave −21 % and 3 gave +33 %).
 pub const PIPE_EXPONENT: f64 = 2.5;
@@ -34,6 +67,14 @@ pub const PIPE_EXPONENT: f64 = 2.5;
 /// What the user may set. `None` means "derive from the cloud" (see [`Parameters`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ColonizeConfig {
+    /// How the skeleton graph is grown. Default [`Growth::Colonization`].
+    pub growth: Growth,
+    /// Level-set bin width (path length from the root per bin), metres. Default:
+    /// [`LEVEL_BIN_SPACINGS`] × spacing, at least [`MIN_LEVEL_BIN_M`].
+    pub bin_m: Option<f64>,
+    /// Largest level-set patch that is not a ring around a branch, metres. Default:
+    /// [`PATCH_BINS`] × bin, at most [`MAX_PATCH_M`].
+    pub patch_m: Option<f64>,
     /// Median distance between neighbouring points, metres. Default: measured.
     pub spacing_m: Option<f64>,
     /// Trunk radius near the base, metres. Default: a circle fitted to a slice of the
@@ -85,6 +126,9 @@ pub struct ColonizeConfig {
 impl Default for ColonizeConfig {
     fn default() -> Self {
         Self {
+            growth: Growth::Colonization,
+            bin_m: None,
+            patch_m: None,
             spacing_m: None,
             trunk_radius_m: None,
             kill_distance_m: None,
@@ -127,6 +171,8 @@ impl ColonizeConfig {
         positive("step_m", self.step_m)?;
         positive("influence_m", self.influence_m)?;
         positive("max_gap_m", self.max_gap_m)?;
+        positive("bin_m", self.bin_m)?;
+        positive("patch_m", self.patch_m)?;
         if let Some(m) = self.min_twig_m
             && !(m.is_finite() && m >= 0.0)
         {
@@ -159,6 +205,12 @@ impl ColonizeConfig {
 /// The parameters a reconstruction ran with, derived where the config left them open.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Parameters {
+    /// How the skeleton graph was grown.
+    pub growth: Growth,
+    /// Level-set bin width, metres.
+    pub bin_m: f64,
+    /// Largest level-set patch that is not a ring, metres.
+    pub patch_m: f64,
     /// Median nearest-neighbour distance, metres.
     pub spacing_m: f64,
     /// Trunk radius near the base, metres.

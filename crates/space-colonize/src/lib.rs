@@ -59,6 +59,7 @@ mod error;
 mod fidelity;
 mod geometry;
 mod grow;
+mod levels;
 mod metrics;
 mod reconstruct;
 mod refine;
@@ -67,8 +68,9 @@ pub mod synthetic;
 
 pub use cloud::{MAX_COORDINATE_M, MIN_POINTS};
 pub use config::{
-    ColonizeConfig, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, MAX_GAP_INFLUENCES, MAX_TWIG_KILL_M,
-    MIN_KILL_SPACINGS, MIN_STEP_PER_KILL, PIPE_EXPONENT, Parameters, STEP_SPACINGS,
+    ColonizeConfig, Growth, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, LEVEL_BIN_SPACINGS,
+    MAX_GAP_INFLUENCES, MAX_PATCH_M, MAX_TWIG_KILL_M, MIN_KILL_SPACINGS, MIN_LEVEL_BIN_M,
+    MIN_STEP_PER_KILL, PATCH_BINS, PIPE_EXPONENT, Parameters, STEP_SPACINGS,
 };
 pub use error::{ColonizeError, Result};
 pub use reconstruct::{

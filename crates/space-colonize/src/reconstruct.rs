@@ -5,9 +5,11 @@ use serde::Serialize;
 
 use crate::cloud::Prepared;
 use crate::cloud::prepare;
+use crate::config::Growth;
 use crate::config::{ColonizeConfig, Parameters};
 use crate::error::{ColonizeError, Result};
 use crate::grow::{Pass, grow};
+use crate::levels::{Levels, grow_levels};
 use crate::metrics::NEAR_CLOUD_M;
 use crate::refine::{Graph, far_tails, twig_stubs, unneeded_stubs};
 use crate::skeleton::{Branch, Skeleton};
@@ -122,17 +124,28 @@ pub fn reconstruct_with_progress(
     let prep = prepare(points, config)?;
     progress(Stage::Grow);
     let p = prep.params;
-    let g = grow(
-        &prep,
-        Pass {
-            seeds: (&[], &[]),
-            attract: prep.main.clone(),
-            kill_m: p.kill_distance_m,
-            influence_m: p.influence_m,
-            step_m: p.step_m,
-            bridges: true,
-        },
-    )?;
+    let levels = p.growth == Growth::LevelSets;
+    let g = if levels {
+        grow_levels(
+            &prep,
+            Levels {
+                bin_m: p.bin_m,
+                patch_m: p.patch_m,
+            },
+        )?
+    } else {
+        grow(
+            &prep,
+            Pass {
+                seeds: (&[], &[]),
+                attract: prep.main.clone(),
+                kill_m: p.kill_distance_m,
+                influence_m: p.influence_m,
+                step_m: p.step_m,
+                bridges: true,
+            },
+        )?
+    };
     if g.positions.len() < 2 {
         return Err(ColonizeError::NoGrowth {
             points: prep.main.iter().filter(|&&m| m).count(),
@@ -149,11 +162,17 @@ pub fn reconstruct_with_progress(
         graph.extend_tips(&prep.pts, &prep.main, &p, from);
         // SC nodes zig-zag between the attractors of successive steps: straighten them
         // before centring, then remove the centring noise without shrinking bends.
-        graph.smooth_from(PRE_CENTRING_PASSES, from, false);
+        // Level-set nodes are patch centres on the points; smoothing would pull the
+        // nodes of sparse twigs and leaves off their points.
+        if !(levels && from == 0) {
+            graph.smooth_from(PRE_CENTRING_PASSES, from, false);
+        }
         if config.centring {
             graph.centre(&prep.pts, &prep.main, &p, from);
         }
-        graph.smooth_from(config.smoothing_iterations, from, true);
+        if !(levels && from == 0) {
+            graph.smooth_from(config.smoothing_iterations, from, true);
+        }
     };
     refine(&mut graph, 0);
     let radii = |graph: &Graph| {
@@ -200,8 +219,11 @@ pub fn reconstruct_with_progress(
     }
     let radii_of = |graph: &Graph| radii(graph).map(|(s, _)| s);
     let mut pruned = 0;
+    // Level sets give a chain to every patch, also parallel chains along the surface of a
+    // thick branch: any terminal twig no point needs goes, not only the short stubs.
+    let stub_m = if levels { f64::INFINITY } else { p.min_twig_m };
     for _ in 0..2 {
-        let stubs = twig_stubs(&skeleton, p.min_twig_m);
+        let stubs = twig_stubs(&skeleton, stub_m);
         let removed = remove_unneeded(&mut graph, &skeleton, &stubs, &prep, &radii_of)?;
         if removed == 0 {
             break;

@@ -63,3 +63,36 @@ fn gappy_tree13_stays_one_tree() {
         0
     );
 }
+
+/// AdTree's figures on the same clouds by the same measure (issue 22): mean point-to-surface
+/// (metres), share of points within 2 cm, share of model length near the cloud.
+const ADTREE: [(&str, f64, f64, f64); 3] = [
+    ("adtree/tree7.xyz", 0.0052, 0.95, 0.93),
+    ("adtree/tree13.xyz", 0.0270, 0.88, 0.50),
+    ("adtree/Paris_Luxembourg_1.xyz", 0.0102, 0.92, 0.70),
+];
+
+/// Level-set growth against AdTree's figures: better on every point figure of the three
+/// clouds and on tree7's model figure; the model near the cloud on tree13 and Paris is
+/// still below AdTree's (docs/validation.md), asserted at what is measured so a
+/// regression shows.
+#[test]
+fn level_sets_follow_the_points_of_leafy_clouds() {
+    let config = ColonizeConfig {
+        growth: space_colonize::Growth::LevelSets,
+        ..ColonizeConfig::default()
+    };
+    // Measured model-near-cloud shares, less a margin.
+    let near_floor: [f64; 3] = [0.93, 0.44, 0.65];
+    for ((rel, mean, within, near), floor) in ADTREE.iter().zip(near_floor) {
+        let Some(pts) = cloud(rel) else {
+            continue;
+        };
+        let model = reconstruct(&pts, &config).unwrap();
+        let f = space_colonize::fidelity(&pts, &model.skeleton);
+        println!("{rel}: {f:?}");
+        assert!(f.mean_distance_m < *mean, "{rel}: {f:?}");
+        assert!(f.within_2cm > *within, "{rel}: {f:?}");
+        assert!(f.model_near_cloud > floor.min(*near), "{rel}: {f:?}");
+    }
+}
