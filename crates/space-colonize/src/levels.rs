@@ -4,20 +4,25 @@
 //! patches that touch.
 //!
 //! 1. Each point is joined to its [`NEIGHBOURS`] nearest within [`EDGE_SPACINGS`] point
-//!    spacings (both ways).
-//! 2. Shortest paths through that graph from the points around the root (Dijkstra). When
-//!    the front stalls with points left, the nearest unreached point is joined to the
-//!    nearest reached one by a straight bridge (at most the longest gap), as in growth.
-//! 3. The path length is cut into bins; points of one bin that touch form a patch. A patch
-//!    wider than the patch size that is not a ring around a branch (a circle fit in its own
-//!    plane) is split on a grid of that size: a band of a leafy crown becomes many small
-//!    patches on the leaves, not one node in the air at its middle.
+//!    spacings (both ways); each point of a small piece of the graph also gets a bridge to
+//!    its nearest point outside the piece.
+//! 2. Shortest paths through that graph from the points around the root (Dijkstra; a
+//!    bridge costs [`BRIDGE_COST`] times its length). When the front still stalls with
+//!    points left, the nearest unreached point is joined to the nearest reached one (at
+//!    most the longest gap).
+//! 3. The path length is cut into bins; points of one bin within [`LINK_BINS`] bins of
+//!    each other form a patch. Path lengths through scattered points zigzag, so the level
+//!    set around a thick branch is wavy and a thin slice of it can break into arcs: arcs of
+//!    one bin that together make a ring are merged. A patch wider than the patch size that
+//!    is not a ring around a branch (a circle fit across the direction the paths run) is
+//!    split on a grid of that size: a band of a leafy crown becomes many small patches on
+//!    the leaves, not one node in the air at its middle.
 //! 4. One node per patch at its centroid; its parent is the patch holding the shortest
 //!    path's predecessor of the patch's first-reached point. Bridges longer than a bin get
 //!    intermediate nodes.
 //!
-//! Cost: k-nearest-neighbour queries and Dijkstra, O(n log n); each stall rebuilds a k-d
-//! tree of the reached points (a cloud with many separate pieces costs a rebuild each).
+//! Cost: k-nearest-neighbour and fixed-radius queries and Dijkstra, O(n log n); a stall
+//! that the small-piece bridges did not prevent rebuilds a k-d tree of the reached points.
 
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
@@ -41,9 +46,13 @@ pub const EDGE_SPACINGS: f64 = 4.0;
 const RING_COVERAGE: f64 = 0.4;
 /// ... with an RMS residual below this share of its radius.
 const RING_RMS_PER_RADIUS: f64 = 0.35;
+/// ... holding at least this share of the patch's points.
+const RING_INLIERS: f64 = 0.5;
 /// Fewest points for the ring test.
 const RING_POINTS: usize = 8;
 const NONE: u32 = u32::MAX;
+/// Points of one bin closer than this many bins are in one patch.
+pub const LINK_BINS: f64 = 2.0;
 
 /// Sizes of the level sets.
 #[derive(Debug, Clone, Copy)]
@@ -134,7 +143,7 @@ fn neighbour_graph(prep: &Prepared) -> NeighbourGraph {
 const SMALL_PIECE: usize = 64;
 /// A path pays this many times a bridge's length to cross it, so pieces are entered once,
 /// by their shortest bridge, and paths run through points where points allow.
-const BRIDGE_COST: f64 = 4.0;
+pub const BRIDGE_COST: f64 = 4.0;
 
 /// Add the bridges of the small pieces of the graph (see [`SMALL_PIECE`]), as edges with a
 /// negative length, up to the longest gap.
@@ -298,8 +307,10 @@ impl UnionFind {
 }
 
 /// Whether the points form a ring around a branch: a circle fitted in the plane across
-/// their thinnest direction covers [`RING_COVERAGE`] with a small residual.
-fn is_ring(pts: &[[f64; 3]], members: &[u32]) -> bool {
+/// `axis` (the branch direction, when known) or across their thinnest direction covers
+/// [`RING_COVERAGE`] with a small residual, and holds most of the points (a branch
+/// leaving the ring adds points off the circle, which the fit sets aside).
+fn is_ring(pts: &[[f64; 3]], members: &[u32], axis: Option<Vector3<f64>>) -> bool {
     if members.len() < RING_POINTS {
         return false;
     }
@@ -308,18 +319,29 @@ fn is_ring(pts: &[[f64; 3]], members: &[u32]) -> bool {
         .iter()
         .fold(Vector3::zeros(), |a, &i| a + Vector3::from(pts[i as usize]))
         / n;
-    let mut cov = Matrix3::zeros();
-    for &i in members {
-        let d = Vector3::from(pts[i as usize]) - mean;
-        cov += d * d.transpose();
-    }
-    let eig = cov.symmetric_eigen();
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-    let (u, v) = (
-        eig.eigenvectors.column(order[0]).into_owned(),
-        eig.eigenvectors.column(order[1]).into_owned(),
-    );
+    let (u, v) = match axis.and_then(|a| a.try_normalize(1e-12)) {
+        Some(t) => {
+            let u = t
+                .cross(&Vector3::z())
+                .try_normalize(1e-9)
+                .unwrap_or_else(|| t.cross(&Vector3::x()).normalize());
+            (u, t.cross(&u))
+        }
+        None => {
+            let mut cov = Matrix3::zeros();
+            for &i in members {
+                let d = Vector3::from(pts[i as usize]) - mean;
+                cov += d * d.transpose();
+            }
+            let eig = cov.symmetric_eigen();
+            let mut order = [0usize, 1, 2];
+            order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+            (
+                eig.eigenvectors.column(order[0]).into_owned(),
+                eig.eigenvectors.column(order[1]).into_owned(),
+            )
+        }
+    };
     let plane: Vec<[f64; 2]> = members
         .iter()
         .map(|&i| {
@@ -327,56 +349,163 @@ fn is_ring(pts: &[[f64; 3]], members: &[u32]) -> bool {
             [d.dot(&u), d.dot(&v)]
         })
         .collect();
-    fit_circle(&plane)
-        .is_some_and(|c| c.coverage >= RING_COVERAGE && c.rms_m < RING_RMS_PER_RADIUS * c.radius_m)
+    fit_circle(&plane).is_some_and(|c| {
+        c.coverage >= RING_COVERAGE
+            && c.rms_m < RING_RMS_PER_RADIUS * c.radius_m
+            && c.points as f64 >= RING_INLIERS * n
+    })
+}
+
+/// The branch direction at a patch: the sum of the unit directions in which the shortest
+/// paths reach its points (up the surface of a branch, whatever happened below).
+fn path_axis(prep: &Prepared, paths: &Paths, members: &[u32]) -> Vector3<f64> {
+    members
+        .iter()
+        .filter(|&&i| paths.pred[i as usize] != NONE)
+        .filter_map(|&i| {
+            (Vector3::from(prep.pts[i as usize])
+                - Vector3::from(prep.pts[paths.pred[i as usize] as usize]))
+            .try_normalize(1e-12)
+        })
+        .sum()
+}
+
+/// Patches of one bin with the same parent patch whose points together form a ring are
+/// arcs of one branch's cross-section (a level set around a thick branch is wavy, so a
+/// thin slice of it can break): merge them, bin by bin from the root.
+fn merge_arcs(prep: &Prepared, paths: &Paths, uf: &mut UnionFind, bin: &dyn Fn(usize) -> i64) {
+    let n = prep.pts.len();
+    let mut members: HashMap<usize, Vec<u32>> = HashMap::new();
+    let mut order: Vec<u32> = (0..n as u32)
+        .filter(|&i| paths.rank[i as usize] != NONE)
+        .collect();
+    order.sort_by_key(|&i| paths.rank[i as usize]);
+    // Patches by their first-reached point, in reach order (so by bin).
+    let mut entries: Vec<u32> = Vec::new();
+    for &i in &order {
+        let r = uf.find(i as usize);
+        let m = members.entry(r).or_default();
+        if m.is_empty() {
+            entries.push(i);
+        }
+        m.push(i);
+    }
+    let mut start = 0;
+    while start < entries.len() {
+        let b = bin(entries[start] as usize);
+        let end = start
+            + entries[start..]
+                .iter()
+                .take_while(|&&e| bin(e as usize) == b)
+                .count();
+        // Largest first: each smaller patch joins the nearest larger one when together
+        // they are a ring.
+        let mut group: Vec<(usize, Vector3<f64>)> = entries[start..end]
+            .iter()
+            .map(|&e| {
+                let r = uf.find(e as usize);
+                let m = &members[&r];
+                let c = m.iter().fold(Vector3::zeros(), |a, &i| {
+                    a + Vector3::from(prep.pts[i as usize])
+                }) / m.len() as f64;
+                (r, c)
+            })
+            .collect();
+        group.sort_by_key(|(r, _)| std::cmp::Reverse(members[r].len()));
+        for k in 1..group.len() {
+            let (r, c) = group[k];
+            let Some(&(q, _)) = group[..k]
+                .iter()
+                .min_by(|a, b| (a.1 - c).norm().total_cmp(&(b.1 - c).norm()))
+            else {
+                continue;
+            };
+            let (rq, rr) = (uf.find(q), uf.find(r));
+            if rq == rr {
+                continue;
+            }
+            let all: Vec<u32> = members[&rq].iter().chain(&members[&rr]).copied().collect();
+            if is_ring(&prep.pts, &all, None) {
+                uf.union(rq, rr);
+                let keep = uf.find(rq);
+                members.insert(keep, all);
+            }
+        }
+        start = end.max(start + 1);
+    }
 }
 
 /// Grow the skeleton graph by geodesic level sets (see the module docs).
 pub(crate) fn grow_levels(prep: &Prepared, levels: Levels) -> Result<Growth> {
     let graph = neighbour_graph(prep);
     let paths = shortest_paths(prep, &graph);
-    let (patch_of, entry) = patches(prep, &graph, &paths, levels);
+    let (patch_of, entry) = patches(prep, &paths, levels);
     nodes(prep, &paths, levels, &patch_of, &entry)
 }
 
 /// Patches of touching points of one bin, wide ones that are not rings split on a grid:
 /// per point its patch (`NONE` if unreached) and per patch its first-reached point, in
 /// the order they were reached (parents before children).
-fn patches(
-    prep: &Prepared,
-    graph: &NeighbourGraph,
-    paths: &Paths,
-    levels: Levels,
-) -> (Vec<u32>, Vec<u32>) {
+fn patches(prep: &Prepared, paths: &Paths, levels: Levels) -> (Vec<u32>, Vec<u32>) {
     let n = prep.pts.len();
     let bin = |i: usize| (paths.dist[i] / levels.bin_m).floor() as i64;
     let reached = |i: usize| paths.rank[i] != NONE;
-    // Patches: touching points of one bin.
+    // Patches: points of one bin within the link distance of each other. Graph edges
+    // alone would break the thin slice of a thick branch into arcs (a point's nearest
+    // neighbours are mostly in the bins above and below).
+    let link_m = LINK_BINS * levels.bin_m;
     let mut uf = UnionFind::new(n);
     for i in (0..n).filter(|&i| reached(i)) {
-        for (j, _, bridge) in graph.of(i) {
-            if !bridge && j > i && reached(j) && bin(i) == bin(j) {
+        for nb in prep
+            .tree
+            .within_unsorted::<SquaredEuclidean>(&prep.pts[i], link_m * link_m)
+        {
+            let j = nb.item as usize;
+            if j > i && reached(j) && bin(i) == bin(j) {
                 uf.union(i, j);
             }
         }
     }
+    merge_arcs(prep, paths, &mut uf, &bin);
     let mut members: HashMap<usize, Vec<u32>> = HashMap::new();
     for i in (0..n).filter(|&i| reached(i)) {
         members.entry(uf.find(i)).or_default().push(i as u32);
     }
-    // Split the wide patches that are not rings on a grid.
-    let mut split = vec![false; n];
-    for (root, m) in &members {
-        let c = m.iter().fold(Vector3::zeros(), |a, &i| {
+    // Split the wide patches that are not rings on a grid. The ring is tested across the
+    // direction from the parent patch (the patch of the path's predecessor of its first
+    // point): a junction's patch, a ring with the base of a branch, has a tilted
+    // principal plane but is a ring across the branch it continues.
+    let centroid = |m: &[u32]| {
+        m.iter().fold(Vector3::zeros(), |a, &i| {
             a + Vector3::from(prep.pts[i as usize])
-        }) / m.len() as f64;
+        }) / m.len() as f64
+    };
+    let centres: HashMap<usize, Vector3<f64>> =
+        members.iter().map(|(r, m)| (*r, centroid(m))).collect();
+    // Per patch: wide (beyond half the patch size) and a ring, or neither.
+    let mut wide: HashMap<usize, bool> = HashMap::new();
+    let mut ring: HashMap<usize, bool> = HashMap::new();
+    for (root, m) in &members {
+        let c = centres[root];
         let extent = m
             .iter()
             .map(|&i| (Vector3::from(prep.pts[i as usize]) - c).norm())
             .fold(0.0, f64::max);
-        if extent > 0.5 * levels.patch_m && !is_ring(&prep.pts, m) {
-            split[*root] = true;
-        }
+        let is_wide = extent > 0.5 * levels.patch_m;
+        wide.insert(*root, is_wide);
+        ring.insert(
+            *root,
+            is_wide
+                && is_ring(
+                    &prep.pts,
+                    m,
+                    Some(path_axis(prep, paths, m)).filter(|a| a.norm() > 0.0),
+                ),
+        );
+    }
+    let mut split = vec![false; n];
+    for root in members.keys() {
+        split[*root] = wide[root] && !ring[root];
     }
     let cell = |i: usize| {
         let q = prep.pts[i];
@@ -387,15 +516,20 @@ fn patches(
         ]
     };
     let first = (0..n).map(|i| uf.find(i)).collect::<Vec<_>>();
+    // Patches that stay whole keep their points; split ones are cut into grid cells, each
+    // cell's points joined as the patch's were.
     let mut uf = UnionFind::new(n);
     for i in (0..n).filter(|&i| reached(i)) {
-        for (j, _, bridge) in graph.of(i) {
-            if !bridge
-                && j > i
-                && reached(j)
-                && first[i] == first[j]
-                && (!split[first[i]] || cell(i) == cell(j))
-            {
+        if !split[first[i]] {
+            uf.union(i, first[i]);
+            continue;
+        }
+        for nb in prep
+            .tree
+            .within_unsorted::<SquaredEuclidean>(&prep.pts[i], link_m * link_m)
+        {
+            let j = nb.item as usize;
+            if j > i && reached(j) && first[i] == first[j] && cell(i) == cell(j) {
                 uf.union(i, j);
             }
         }
@@ -427,9 +561,17 @@ fn nodes(
     entry: &[u32],
 ) -> Result<Growth> {
     let patches = entry.len();
+    // Each patch is one step of growth.
+    if patches > prep.params.max_iterations {
+        return Err(ColonizeError::IterationLimit {
+            iterations: prep.params.max_iterations,
+            nodes: 0,
+            unreached: paths.unreached,
+        });
+    }
     if patches + 1 > prep.params.max_nodes {
         return Err(ColonizeError::NodeLimit {
-            nodes: patches + 1,
+            nodes: prep.params.max_nodes,
             unreached: paths.unreached,
         });
     }

@@ -83,6 +83,7 @@ pub use geometry::{
     Cylinder, DEFAULT_MESH_SIDES, MAX_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv,
     tube_mesh,
 };
+pub use levels::{BRIDGE_COST, EDGE_SPACINGS, LINK_BINS, NEIGHBOURS};
 pub use metrics::{Metrics, NEAR_CLOUD_M, metrics};
 
 /// The types most programs need.

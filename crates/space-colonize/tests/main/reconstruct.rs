@@ -136,6 +136,7 @@ fn pure_pipe_model_follows_the_pipe_rule() {
     let s = &model.skeleton;
     let e = cfg.pipe_exponent;
     // r_in^e = Σ r_out^e at every fork (radii of the segments into and out of it).
+    let carried = s.carried_length_m();
     let mut forks = 0;
     for node in s.nodes() {
         let kids = s.children(node.id);
@@ -151,9 +152,15 @@ fn pure_pipe_model_follows_the_pipe_rule() {
             })
             .sum();
         let inn = node.radius_m.powf(e);
-        // The incoming segment also carries its own length: inn >= out, close for short segments.
+        // The incoming segment also carries its own length: inn >= out, and larger by at
+        // most its own share of the length it carries.
+        let own = s.segment_length_m(node.id) / carried[node.id];
         assert!(inn >= out * (1.0 - 1e-9), "fork {}: {inn} < {out}", node.id);
-        assert!(inn <= out * 1.2, "fork {}: {inn} vs {out}", node.id);
+        assert!(
+            inn <= out / (1.0 - own) * (1.0 + 1e-6),
+            "fork {}: {inn} vs {out}, own share {own}",
+            node.id
+        );
     }
     assert!(forks > 5);
     // Anchored at the fitted trunk base.
@@ -228,9 +235,9 @@ fn growth_does_not_cut_the_corner_between_diverging_twigs() {
 }
 
 /// Level-set growth puts every node on a patch of points: on a synthetic tree the model
-/// stays on the cloud (space colonization's chords through the air would not) and every
-/// point is near it. Its known weakness (parallel chains on thick, sparsely sampled trunks)
-/// shows as length, so only a loose length bound.
+/// stays on the cloud (space colonization's chords through the air would not), every
+/// point is near it, and the trunk's thin slices make rings on its axis, not parallel
+/// chains on its surface (before arcs were merged: axis error 2.2 cm, length x2.3).
 #[test]
 fn level_sets_stay_on_the_points() {
     let truth = small(3).generate().unwrap();
@@ -240,13 +247,13 @@ fn level_sets_stay_on_the_points() {
     };
     let model = reconstruct(&truth.points, &config).unwrap();
     let f = space_colonize::fidelity(&truth.points, &model.skeleton);
-    assert!(f.model_near_cloud > 0.97, "{f:?}");
-    assert!(f.within_2cm > 0.98, "{f:?}");
-    assert!(f.mean_distance_m < 0.006, "{f:?}");
+    assert!(f.model_near_cloud > 0.99, "{f:?}");
+    assert!(f.within_2cm > 0.99, "{f:?}");
+    assert!(f.mean_distance_m < 0.003, "{f:?}");
+    // Measured 7.9 mm, 98.7 %, x1.19.
     let e = skeleton_error(&model.skeleton, &truth.skeleton);
-    // Measured 0.91 and x2.5: the trunk's parallel chains sit on its surface, up to a
-    // trunk radius from the true axis.
-    assert!(e.truth_length_found > 0.88, "{e:?}");
-    assert!(e.length_ratio < 3.0, "{e:?}");
+    assert!(e.mean_skeleton_error_m < 0.01, "{e:?}");
+    assert!(e.truth_length_found > 0.97, "{e:?}");
+    assert!((e.length_ratio - 1.0).abs() < 0.3, "{e:?}");
     assert_eq!(model.parameters.growth, space_colonize::Growth::LevelSets);
 }
