@@ -48,11 +48,13 @@ pub enum Growth {
     /// Geodesic level sets over a neighbour graph of the points (Xu, Gossett & Chen 2007):
     /// every node is the centre of a patch of points and every edge joins two patches that
     /// touch, so the model follows the points and ends in leaf clumps instead of crossing
-    /// crowns. Better on leafy and sparse scans (on the AdTree clouds it beats AdTree on
-    /// tree7, and on the point figures of tree13 and Paris_Luxembourg_1; see
-    /// `docs/validation.md`); on the leaf-off coffee tree it keeps short twigs TreeQSM
-    /// does not (length +14 %), and on the pipeline's one-sided Kinect twin its axes are
-    /// 10.7 mm from the truth (colonization 7.4 mm), so it is not the default yet.
+    /// crowns. Better on leafy and sparse scans: on the AdTree clouds (tree7, tree13,
+    /// Paris_Luxembourg_1) it beats AdTree on mean point-to-surface, points within 2 cm
+    /// and model near the cloud (`docs/validation.md`). Not the default yet: on the
+    /// leaf-off coffee tree it keeps short twigs TreeQSM does not (length +15 %), and on
+    /// the pipeline's one-sided Kinect twin its axes are 12.6 mm from the truth
+    /// (colonization 7.4 mm: the patch centres of half-seen branches sit on their near
+    /// surface).
     LevelSets,
     /// Space colonization (Runions et al. 2007), the paper's method and the default: the
     /// nodes grow toward the mean direction of their attractors, which in a leafy crown

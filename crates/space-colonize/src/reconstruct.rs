@@ -159,7 +159,10 @@ pub fn reconstruct_with_progress(
         bridge: g.bridge.clone(),
     };
     let refine = |graph: &mut Graph, from: usize| {
-        graph.extend_tips(&prep.pts, &prep.main, &p, from);
+        // Level-set tips are already at the last points of their twig.
+        if !(levels && from == 0) {
+            graph.extend_tips(&prep.pts, &prep.main, &p, from);
+        }
         // SC nodes zig-zag between the attractors of successive steps: straighten them
         // before centring, then remove the centring noise without shrinking bends.
         // Level-set nodes are patch centres on the points; smoothing would pull the
@@ -167,8 +170,11 @@ pub fn reconstruct_with_progress(
         if !(levels && from == 0) {
             graph.smooth_from(PRE_CENTRING_PASSES, from, false);
         }
+        // Where no circle fits, space colonization's nodes move to the centroid of their
+        // cross-section; a level-set node already is a patch centre, and the centroid of
+        // its neighbours' points would pull a sparse twig's node off its points.
         if config.centring {
-            graph.centre(&prep.pts, &prep.main, &p, from);
+            graph.centre(&prep.pts, &prep.main, &p, from, !levels);
         }
         if !(levels && from == 0) {
             graph.smooth_from(config.smoothing_iterations, from, true);
@@ -236,7 +242,9 @@ pub fn reconstruct_with_progress(
         // had only centroids.
         let r: Vec<f64> = skeleton.nodes().iter().map(|n| n.radius_m).collect();
         graph.centre_on_radius(&prep.pts, &prep.main, &r);
-        graph.smooth_from(config.smoothing_iterations, 0, true);
+        if !levels {
+            graph.smooth_from(config.smoothing_iterations, 0, true);
+        }
         (skeleton, fits_used) = radii(&graph)?;
     }
     let mut far_tips = 0;

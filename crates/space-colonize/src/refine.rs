@@ -184,9 +184,16 @@ impl Graph {
 
     /// Move nodes from index `from` on onto the branch axis: a circle fitted to the points a node and its
     /// neighbours own, in the plane across the branch; where no circle fits (thin branches),
-    /// the centroid of those points.
+    /// the centroid of those points if `centroid_fallback`, else the node stays.
     #[allow(clippy::needless_range_loop)] // `i` is also the node passed to the helpers
-    pub(crate) fn centre(&mut self, pts: &[[f64; 3]], keep: &[bool], p: &Parameters, from: usize) {
+    pub(crate) fn centre(
+        &mut self,
+        pts: &[[f64; 3]],
+        keep: &[bool],
+        p: &Parameters,
+        from: usize,
+        centroid_fallback: bool,
+    ) {
         for _ in 0..CENTRING_PASSES {
             let a = self.assign(pts, keep);
             let children = self.children();
@@ -204,6 +211,7 @@ impl Graph {
                 }
                 let centre = match fit_circle(&plane).filter(|c| usable(c, p)) {
                     Some(c) => c.centre,
+                    None if !centroid_fallback => continue,
                     // Too few points or too thin for a circle: the centroid of the cross
                     // section, which is on the axis of a branch about a spacing thick.
                     None => {

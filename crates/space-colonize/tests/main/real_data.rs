@@ -72,27 +72,24 @@ const ADTREE: [(&str, f64, f64, f64); 3] = [
     ("adtree/Paris_Luxembourg_1.xyz", 0.0102, 0.92, 0.70),
 ];
 
-/// Level-set growth against AdTree's figures: better on every point figure of the three
-/// clouds and on tree7's model figure; the model near the cloud on tree13 and Paris is
-/// still below AdTree's (docs/validation.md), asserted at what is measured so a
-/// regression shows.
+/// Level-set growth against AdTree's figures: better on all three on every cloud (issue
+/// 22's goal; the margins are thin on tree13's and Paris's model near the cloud, 50.9 %
+/// and 71.0 % against 50 % and 70 %, see docs/validation.md).
 #[test]
-fn level_sets_follow_the_points_of_leafy_clouds() {
+fn level_sets_beat_adtree_on_its_clouds() {
     let config = ColonizeConfig {
         growth: space_colonize::Growth::LevelSets,
         ..ColonizeConfig::default()
     };
-    // Measured model-near-cloud shares, less a margin.
-    let near_floor: [f64; 3] = [0.93, 0.44, 0.65];
-    for ((rel, mean, within, near), floor) in ADTREE.iter().zip(near_floor) {
+    for (rel, mean, within, near) in ADTREE {
         let Some(pts) = cloud(rel) else {
             continue;
         };
         let model = reconstruct(&pts, &config).unwrap();
         let f = space_colonize::fidelity(&pts, &model.skeleton);
         println!("{rel}: {f:?}");
-        assert!(f.mean_distance_m < *mean, "{rel}: {f:?}");
-        assert!(f.within_2cm > *within, "{rel}: {f:?}");
-        assert!(f.model_near_cloud > floor.min(*near), "{rel}: {f:?}");
+        assert!(f.mean_distance_m < mean, "{rel}: {f:?}");
+        assert!(f.within_2cm > within, "{rel}: {f:?}");
+        assert!(f.model_near_cloud > near, "{rel}: {f:?}");
     }
 }
