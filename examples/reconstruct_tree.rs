@@ -14,6 +14,11 @@
 //! `"seconds"` (reconstruction time without file I/O or metrics), plus the `"parameters"` used
 //! and what `"growth"` did. Progress goes to stderr.
 //!
+//! With `--view-from X,Y,Z` the cloud is first reduced to what a Kinect v2 there would see
+//! (`space_colonize::camera_view`: the near half of each branch, `--depth-noise-m` along the
+//! rays), and `"view"` measures the model against the whole cloud
+//! (`"fidelity_to_whole_cloud"`, `"metrics_to_whole_cloud"`).
+//!
 //! With no arguments it reconstructs a synthetic tree sampled from a known skeleton and adds
 //! `"truth"`: the error against that skeleton.
 
@@ -26,9 +31,9 @@ use treemocap::kinect_io::read_point_cloud;
 use treemocap::nalgebra::Point3;
 use treemocap::space_colonize::synthetic::{SkeletonError, SyntheticConfig, skeleton_error};
 use treemocap::space_colonize::{
-    ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, Growth, GrowthReport, Metrics, Parameters,
-    Reconstruction, Stage, cylinders, cylinders_to_csv, fidelity, metrics,
-    reconstruct_with_progress, tube_mesh,
+    ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, Growth, GrowthReport, KINECT_DEPTH_NOISE_M,
+    Metrics, Parameters, Reconstruction, Stage, ViewConfig, camera_view, cylinders,
+    cylinders_to_csv, fidelity, metrics, reconstruct_with_progress, tube_mesh,
 };
 
 mod common;
@@ -57,6 +62,27 @@ struct Args {
     /// `levels` (geodesic level sets: follows the points, better on leafy and sparse scans)
     #[arg(long, value_name = "METHOD", default_value = "colonization", value_parser = growth_method)]
     growth: Growth,
+    /// Reconstruct from what a Kinect v2 at X,Y,Z (metres, the cloud's frame) would see of
+    /// the cloud (the near half of each branch, depth noise along the rays), and measure
+    /// the model against the whole cloud too (`"view"` in the output)
+    #[arg(long = "view-from", value_name = "X,Y,Z", value_parser = point3)]
+    view_from: Option<Point3<f64>>,
+    /// Depth noise of that view, metres (standard deviation along the ray)
+    #[arg(long = "depth-noise-m", value_name = "M", default_value_t = KINECT_DEPTH_NOISE_M)]
+    depth_noise_m: f64,
+}
+
+/// A point as X,Y,Z.
+fn point3(text: &str) -> Result<Point3<f64>, String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|c| c.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{text}: {e}"))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Point3::new(*x, *y, *z)),
+        _ => Err(format!("{text}: must be three finite numbers X,Y,Z")),
+    }
 }
 
 /// A growth method by name.
@@ -94,6 +120,19 @@ struct Report {
     growth: GrowthReport,
     #[serde(skip_serializing_if = "Option::is_none")]
     truth: Option<SkeletonError>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    view: Option<ViewReport>,
+}
+
+/// The model of a one-sided view against the whole cloud.
+#[derive(Serialize)]
+struct ViewReport {
+    camera_m: [f64; 3],
+    depth_noise_m: f64,
+    points_seen: usize,
+    points_in_cloud: usize,
+    fidelity_to_whole_cloud: Fidelity,
+    metrics_to_whole_cloud: Metrics,
 }
 
 fn run(
@@ -143,6 +182,7 @@ fn report(
         parameters: model.parameters,
         growth: model.growth,
         truth,
+        view: None,
     }
 }
 
@@ -172,6 +212,23 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             ("synthetic".to_string(), tree.points, Some(tree.skeleton))
         }
     };
+    let whole = points;
+    let points = match args.view_from {
+        Some(camera_m) => {
+            let view = ViewConfig {
+                depth_noise_m: args.depth_noise_m,
+                ..ViewConfig::kinect(camera_m)
+            };
+            let seen = camera_view(&whole, &view)?;
+            eprintln!(
+                "a Kinect v2 at {camera_m:?} sees {} of the {} points",
+                seen.len(),
+                whole.len()
+            );
+            seen
+        }
+        None => whole.clone(),
+    };
     let (model, seconds) = run(&points, args.growth).map_err(|e| format!("{name}: {e}"))?;
     let error = truth.as_ref().map(|t| skeleton_error(&model.skeleton, t));
     if let Some(p) = &args.skeleton {
@@ -187,7 +244,15 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             .map_err(|e| format!("{}: {e}", p.display()))?;
         eprintln!("wrote {}", p.display());
     }
-    let r = report(name, &points, &model, seconds, error);
+    let mut r = report(name, &points, &model, seconds, error);
+    r.view = args.view_from.map(|c| ViewReport {
+        camera_m: [c.x, c.y, c.z],
+        depth_noise_m: args.depth_noise_m,
+        points_seen: points.len(),
+        points_in_cloud: whole.len(),
+        fidelity_to_whole_cloud: fidelity(&whole, &model.skeleton),
+        metrics_to_whole_cloud: metrics(&whole, &model.skeleton),
+    });
     println!("{}", serde_json::to_string_pretty(&r)?);
     Ok(())
 }

@@ -34,7 +34,10 @@
 //! - [`fidelity`]: the measure models of other tools are compared by (edges as truncated
 //!   cones between their nodes' radii; needs nothing but nodes and radii).
 //! - [`cylinders`] (TreeQSM-style table, [`cylinders_to_csv`]) and [`tube_mesh`] (OBJ, PLY).
-//! - [`synthetic`] trees with a known skeleton, and [`synthetic::skeleton_error`].
+//! - [`synthetic`] trees with a known skeleton, and [`synthetic::skeleton_error`];
+//!   [`camera_view`]: what one depth camera sees of a full scan (the near half of each
+//!   branch, noise along the rays), to judge a reconstruction from a one-sided view
+//!   against the full cloud.
 //!
 //! Units: metres; the tree frame is right-handed with Z up. Nothing here panics on input:
 //! bad clouds and parameters are [`ColonizeError`]s.
@@ -65,6 +68,7 @@ mod reconstruct;
 mod refine;
 mod skeleton;
 pub mod synthetic;
+mod view;
 
 pub use cloud::{MAX_COORDINATE_M, MIN_POINTS};
 pub use config::{
@@ -85,6 +89,7 @@ pub use geometry::{
 };
 pub use levels::{BRIDGE_COST, EDGE_SPACINGS, LINK_BINS, NEIGHBOURS};
 pub use metrics::{Metrics, NEAR_CLOUD_M, metrics};
+pub use view::{KINECT_DEPTH_NOISE_M, KINECT_V2_PIXEL_RAD, ViewConfig, camera_view};
 
 /// The types most programs need.
 pub mod prelude {
