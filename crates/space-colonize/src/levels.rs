@@ -51,8 +51,11 @@ const RING_INLIERS: f64 = 0.5;
 /// Fewest points for the ring test.
 const RING_POINTS: usize = 8;
 const NONE: u32 = u32::MAX;
-/// Points of one bin closer than this many bins are in one patch.
+/// Points of one bin closer than this many bins are in one patch,
 pub const LINK_BINS: f64 = 2.0;
+/// ... among each point's this many nearest (so the cost per point stays bounded on
+/// clouds much denser than the bin).
+pub const LINK_NEIGHBOURS: usize = 32;
 
 /// Sizes of the level sets.
 #[derive(Debug, Clone, Copy)]
@@ -457,12 +460,16 @@ fn patches(prep: &Prepared, paths: &Paths, levels: Levels) -> (Vec<u32>, Vec<u32
     // alone would break the thin slice of a thick branch into arcs (a point's nearest
     // neighbours are mostly in the bins above and below).
     let link_m = LINK_BINS * levels.bin_m;
+    let link_k =
+        std::num::NonZeroUsize::new(LINK_NEIGHBOURS).unwrap_or(std::num::NonZeroUsize::MIN);
     let mut uf = UnionFind::new(n);
     for i in (0..n).filter(|&i| reached(i)) {
-        for nb in prep
-            .tree
-            .within_unsorted::<SquaredEuclidean>(&prep.pts[i], link_m * link_m)
-        {
+        for nb in prep.tree.nearest_n_within::<SquaredEuclidean>(
+            &prep.pts[i],
+            link_m * link_m,
+            link_k,
+            false,
+        ) {
             let j = nb.item as usize;
             if j > i && reached(j) && bin(i) == bin(j) {
                 uf.union(i, j);
@@ -527,10 +534,12 @@ fn patches(prep: &Prepared, paths: &Paths, levels: Levels) -> (Vec<u32>, Vec<u32
             uf.union(i, first[i]);
             continue;
         }
-        for nb in prep
-            .tree
-            .within_unsorted::<SquaredEuclidean>(&prep.pts[i], link_m * link_m)
-        {
+        for nb in prep.tree.nearest_n_within::<SquaredEuclidean>(
+            &prep.pts[i],
+            link_m * link_m,
+            link_k,
+            false,
+        ) {
             let j = nb.item as usize;
             if j > i && reached(j) && first[i] == first[j] && cell(i) == cell(j) {
                 uf.union(i, j);
