@@ -2,7 +2,7 @@
 
 use nalgebra::Point3;
 use proptest::prelude::*;
-use space_colonize::{ColonizeConfig, ColonizeError, reconstruct};
+use space_colonize::{ColonizeConfig, ColonizeError, Growth, reconstruct};
 
 fn cfg() -> ColonizeConfig {
     ColonizeConfig::default()
@@ -126,13 +126,18 @@ proptest! {
         pts in prop::collection::vec((-2.0f64..2.0, -2.0f64..2.0, 0.0f64..4.0), 0..120),
         dup in 0usize..40,
         scale in prop::sample::select(vec![1e-4, 1.0, 100.0]),
+        levels in any::<bool>(),
     ) {
         let mut cloud: Vec<Point3<f64>> =
             pts.iter().map(|&(x, y, z)| Point3::new(x * scale, y * scale, z * scale)).collect();
         if let Some(&p) = cloud.first() {
             cloud.extend(std::iter::repeat_n(p, dup));
         }
-        if let Ok(model) = reconstruct(&cloud, &ColonizeConfig::default()) {
+        let config = ColonizeConfig {
+            growth: if levels { Growth::LevelSets } else { Growth::Colonization },
+            ..ColonizeConfig::default()
+        };
+        if let Ok(model) = reconstruct(&cloud, &config) {
             prop_assert!(model.skeleton.nodes().iter().all(|n| n.radius_m.is_finite()
                 && n.position.iter().all(|c| c.is_finite())));
         }
@@ -161,10 +166,18 @@ fn absurd_points_are_named_and_every_scale_answers() {
         other => panic!("{other:?}"),
     }
     assert!(reconstruct(&truth.points, &cfg()).is_ok());
-    for exponent in [-300, -100, -10, -3, 3, 6, 10, 100, 300] {
+    let levels = ColonizeConfig {
+        growth: Growth::LevelSets,
+        ..cfg()
+    };
+    assert!(reconstruct(&truth.points, &levels).is_ok());
+    for (exponent, config) in [-300, -100, -10, -3, 3, 6, 10, 100, 300]
+        .into_iter()
+        .flat_map(|e| [(e, cfg()), (e, levels.clone())])
+    {
         let scale = 10f64.powi(exponent);
         let scaled: Vec<Point3<f64>> = truth.points.iter().map(|p| p * scale).collect();
-        match reconstruct(&scaled, &cfg()) {
+        match reconstruct(&scaled, &config) {
             Ok(model) => assert!(
                 model
                     .skeleton
@@ -176,7 +189,7 @@ fn absurd_points_are_named_and_every_scale_answers() {
             // A cloud a billionth of a millimetre across is no tree in metres (Degenerate),
             // one beyond the Earth is PointOutOfRange, a 10 km tree meets the node bound:
             // typed errors that say so, printed here for the record.
-            Err(e) => eprintln!("1e{exponent}: {e}"),
+            Err(e) => eprintln!("1e{exponent} {:?}: {e}", config.growth),
         }
     }
 }
