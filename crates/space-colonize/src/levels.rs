@@ -611,7 +611,16 @@ fn nodes(
         if paths.bridged[e as usize] {
             // Intermediate nodes along a bridge longer than a bin.
             let a = Vector3::from(positions[parent]);
-            let steps = ((c - a).norm() / levels.bin_m).floor() as usize;
+            let steps = ((c - a).norm() / levels.bin_m).floor();
+            // Checked before adding: a long bridge with a tiny bin would otherwise fill
+            // memory before the node bound is looked at.
+            if positions.len() as f64 + steps >= prep.params.max_nodes as f64 {
+                return Err(ColonizeError::NodeLimit {
+                    nodes: prep.params.max_nodes,
+                    unreached: paths.unreached,
+                });
+            }
+            let steps = steps as usize;
             for s in 1..steps {
                 let q = a + (c - a) * (s as f64 / steps as f64);
                 positions.push([q.x, q.y, q.z]);

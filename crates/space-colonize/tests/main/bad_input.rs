@@ -193,3 +193,26 @@ fn absurd_points_are_named_and_every_scale_answers() {
         }
     }
 }
+
+/// A level-set bin far below the point spacing, with bridges across a gap: the bridge's
+/// intermediate nodes are counted against the node bound before they are made.
+#[test]
+fn tiny_bins_across_a_gap_meet_the_node_bound() {
+    let cfg = space_colonize::synthetic::SyntheticConfig {
+        seed: 11,
+        points: 2_000,
+        gap_z_m: Some((0.6, 1.0)),
+        ..Default::default()
+    };
+    let truth = cfg.generate().unwrap();
+    let err = reconstruct(
+        &truth.points,
+        &ColonizeConfig {
+            growth: Growth::LevelSets,
+            bin_m: Some(1e-9),
+            ..ColonizeConfig::default()
+        },
+    )
+    .unwrap_err();
+    assert!(matches!(err, ColonizeError::NodeLimit { .. }), "{err}");
+}
