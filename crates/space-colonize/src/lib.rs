@@ -89,7 +89,7 @@ pub use geometry::{
 };
 pub use levels::{BRIDGE_COST, EDGE_SPACINGS, LINK_BINS, NEIGHBOURS};
 pub use metrics::{Metrics, NEAR_CLOUD_M, metrics};
-pub use view::{KINECT_DEPTH_NOISE_M, KINECT_V2_PIXEL_RAD, ViewConfig, camera_view};
+pub use view::{KINECT_DEPTH_NOISE_M, KINECT_V2_PIXEL_RAD, MIN_PIXEL_RAD, ViewConfig, camera_view};
 
 /// The types most programs need.
 pub mod prelude {

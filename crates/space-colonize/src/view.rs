@@ -20,8 +20,13 @@ use crate::error::{ColonizeError, Result};
 pub const KINECT_V2_PIXEL_RAD: f64 = 70.6 / 512.0 * std::f64::consts::PI / 180.0;
 /// Kinect v2 depth noise near 3 m, metres (the 5–8 mm, from the paper's setting).
 pub const KINECT_DEPTH_NOISE_M: f64 = 0.006;
-/// Most pixels one point may cover (a point 1 mm from the camera would cover the frame).
-const MAX_SPLAT_PIXELS: i64 = 16;
+/// Largest splat radius in pixels: at most 29 pixels per point, which bounds the z-buffer's
+/// memory and work (a point nearer than `splat_m / (3 pixel_rad)`, 1.4 m for a Kinect and
+/// 1 cm splats, hides a little less than its disc).
+const MAX_SPLAT_PIXELS: i64 = 3;
+/// Finest pixel accepted, radians (a thousandth of a Kinect's): finer grids only make the
+/// z-buffer larger.
+pub const MIN_PIXEL_RAD: f64 = 2e-6;
 
 /// A camera for [`camera_view`].
 #[derive(Debug, Clone, PartialEq)]
@@ -62,6 +67,12 @@ impl ViewConfig {
             return Err(ColonizeError::param(
                 "camera_m",
                 format!("{:?} is not finite", self.camera_m),
+            ));
+        }
+        if self.pixel_rad < MIN_PIXEL_RAD {
+            return Err(ColonizeError::param(
+                "pixel_rad",
+                format!("{}; must be at least {MIN_PIXEL_RAD}", self.pixel_rad),
             ));
         }
         for (name, v, zero_ok) in [
