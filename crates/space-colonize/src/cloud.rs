@@ -43,21 +43,27 @@ pub(crate) struct Prepared {
     pub params: Parameters,
 }
 
-/// Validate the points and derive the parameters the config leaves open.
-pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result<Prepared> {
-    config.validate()?;
-    if let Some((index, p)) = points
+/// The first point that is not finite, as [`ColonizeError::NonFinitePoint`].
+pub(crate) fn all_finite(points: &[Point3<f64>]) -> Result<()> {
+    match points
         .iter()
         .enumerate()
         .find(|(_, p)| !p.iter().all(|c| c.is_finite()))
     {
-        return Err(ColonizeError::NonFinitePoint {
+        Some((index, p)) => Err(ColonizeError::NonFinitePoint {
             index,
             x: p.x,
             y: p.y,
             z: p.z,
-        });
+        }),
+        None => Ok(()),
     }
+}
+
+/// Validate the points and derive the parameters the config leaves open.
+pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result<Prepared> {
+    config.validate()?;
+    all_finite(points)?;
     if let Some((index, p)) = points
         .iter()
         .enumerate()

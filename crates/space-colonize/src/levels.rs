@@ -462,16 +462,18 @@ fn patches(prep: &Prepared, paths: &Paths, levels: Levels) -> (Vec<u32>, Vec<u32
     let link_m = LINK_BINS * levels.bin_m;
     let link_k =
         std::num::NonZeroUsize::new(LINK_NEIGHBOURS).unwrap_or(std::num::NonZeroUsize::MIN);
+    // The reached points near point `i` that come after it (each pair once).
+    let linked = |i: usize| {
+        prep.tree
+            .nearest_n_within::<SquaredEuclidean>(&prep.pts[i], link_m * link_m, link_k, false)
+            .into_iter()
+            .map(|nb| nb.item as usize)
+            .filter(move |&j| j > i && reached(j))
+    };
     let mut uf = UnionFind::new(n);
     for i in (0..n).filter(|&i| reached(i)) {
-        for nb in prep.tree.nearest_n_within::<SquaredEuclidean>(
-            &prep.pts[i],
-            link_m * link_m,
-            link_k,
-            false,
-        ) {
-            let j = nb.item as usize;
-            if j > i && reached(j) && bin(i) == bin(j) {
+        for j in linked(i) {
+            if bin(i) == bin(j) {
                 uf.union(i, j);
             }
         }
@@ -534,14 +536,8 @@ fn patches(prep: &Prepared, paths: &Paths, levels: Levels) -> (Vec<u32>, Vec<u32
             uf.union(i, first[i]);
             continue;
         }
-        for nb in prep.tree.nearest_n_within::<SquaredEuclidean>(
-            &prep.pts[i],
-            link_m * link_m,
-            link_k,
-            false,
-        ) {
-            let j = nb.item as usize;
-            if j > i && reached(j) && first[i] == first[j] && cell(i) == cell(j) {
+        for j in linked(i) {
+            if first[i] == first[j] && cell(i) == cell(j) {
                 uf.union(i, j);
             }
         }

@@ -117,18 +117,7 @@ fn pixel(d: &Vector3<f64>, pixel_rad: f64) -> (i64, i64) {
 /// for a point that is not finite.
 pub fn camera_view(points: &[Point3<f64>], config: &ViewConfig) -> Result<Vec<Point3<f64>>> {
     config.validate()?;
-    if let Some((index, p)) = points
-        .iter()
-        .enumerate()
-        .find(|(_, p)| !p.iter().all(|c| c.is_finite()))
-    {
-        return Err(ColonizeError::NonFinitePoint {
-            index,
-            x: p.x,
-            y: p.y,
-            z: p.z,
-        });
-    }
+    crate::cloud::all_finite(points)?;
     let rays: Vec<(Vector3<f64>, f64)> = points
         .iter()
         .map(|p| {
