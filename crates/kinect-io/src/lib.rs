@@ -19,7 +19,9 @@
 //! ## Main entry points
 //! - [`CameraModel`] (pinhole + Brown–Conrady, Kinect V2 presets), [`Calibration`] (our JSON,
 //!   iai_kinect2 YAML, rigid / already-registered / libfreenect2 registration).
-//! - [`Recording`] (native and TUM layouts, lazy) and [`RecordingWriter`].
+//! - [`Recording`] (native and TUM folders, Azure Kinect / Orbbec Femto `.mkv`, RealSense
+//!   `.bag`; lazy) and
+//!   [`RecordingWriter`].
 //! - [`CloudBuilder`] → [`TexturedCloud`] → [`project_cloud`] → [`ProjectionImage`] →
 //!   [`ProjectionImage::lift`].
 //! - Point-cloud files: [`read_point_cloud`], [`read_ply`]/[`write_ply`],
@@ -51,15 +53,19 @@
 //! # Ok::<(), kinect_io::KinectError>(())
 //! ```
 
+mod bag;
 mod calibration;
 mod camera;
 mod cloud;
 mod depth;
+mod ebml;
 mod error;
 mod freenect2;
+mod k4a;
 mod occlusion;
 mod opencv_yaml;
 mod pcd;
+mod pixels;
 mod ply;
 mod pointcloud;
 mod projection;

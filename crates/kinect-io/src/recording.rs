@@ -1,12 +1,17 @@
-//! Recordings: a directory of timestamped colour + depth frames with a calibration, read lazily
-//! (one frame in memory at a time) and written in our native layout.
+//! Recordings: timestamped colour + depth frames with a calibration, read lazily (one frame
+//! in memory at a time) from a folder or a camera's container file, and written in our
+//! native layout.
 //!
 //! Layouts (see `docs/recording-format.md`):
 //! - **native**: `calibration.json`, `frames.csv` (`frame,timestamp_s,color,depth`), colour
 //!   PNG/JPEG files and 16-bit depth PNG (or PGM) files in the calibration's depth unit;
 //! - **TUM RGB-D**: `rgb.txt` and `depth.txt` (`timestamp filename` lines), depth in 1/5000 m,
 //!   colour and depth associated by nearest timestamp as TUM's `associate.py` does; the
-//!   calibration is `calibration.json` when present, else TUM's documented defaults.
+//!   calibration is `calibration.json` when present, else TUM's documented defaults;
+//! - **Azure Kinect / Orbbec Femto `.mkv`** (`k4arecorder`'s Matroska layout): a file,
+//!   calibration from its `calibration.json` attachment;
+//! - **Intel RealSense `.bag`** (ROS 1, librealsense's topics): a file, calibration from its
+//!   `camera_info`, `tf` and depth-unit messages.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -14,9 +19,11 @@ use std::path::{Path, PathBuf};
 
 use image::RgbImage;
 
+use crate::bag::{BagRecording, is_rosbag};
 use crate::calibration::Calibration;
 use crate::depth::{DepthImage, read_color_image, read_depth_image, write_depth_png};
 use crate::error::{KinectError, Result};
+use crate::k4a::{K4aRecording, is_matroska};
 
 /// Calibration file of a native recording (and optional in a TUM folder).
 pub const CALIBRATION_FILE: &str = "calibration.json";
@@ -28,13 +35,18 @@ pub const FRAMES_HEADER: &str = "frame,timestamp_s,color,depth";
 /// default `max_difference` of the TUM benchmark's `associate.py`.
 pub const TUM_MAX_DIFFERENCE_S: f64 = 0.02;
 
-/// Which layout a recording directory has.
+/// Which layout a recording has.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum Layout {
-    /// Our native layout.
+    /// Our native layout (a folder).
     Native,
-    /// TUM RGB-D benchmark layout.
+    /// TUM RGB-D benchmark layout (a folder).
     Tum,
+    /// An Azure Kinect or Orbbec Femto Matroska recording (a `.mkv` file).
+    AzureKinect,
+    /// An Intel RealSense ROS 1 bag (a `.bag` file).
+    RealSense,
 }
 
 /// Where one frame's files are.
@@ -63,44 +75,64 @@ pub struct Frame {
     pub depth: DepthImage,
 }
 
-/// A recording directory, opened: the calibration and the frame list are read; images are
-/// loaded only when a frame is asked for.
+/// Where a recording's frames come from.
+#[derive(Debug, Clone)]
+enum Source {
+    /// One image file per frame and camera (native, TUM).
+    Files(Vec<FrameEntry>),
+    /// Blocks of a Matroska file.
+    AzureKinect(Box<K4aRecording>),
+    /// Messages of a ROS bag.
+    RealSense(Box<BagRecording>),
+}
+
+/// A recording, opened: the calibration and the frame list are read; images are loaded only
+/// when a frame is asked for.
 #[derive(Debug, Clone)]
 pub struct Recording {
-    dir: PathBuf,
+    path: PathBuf,
     layout: Layout,
     calibration: Calibration,
-    entries: Vec<FrameEntry>,
+    /// Depth and colour time of every frame, seconds.
+    times_s: Vec<(f64, f64)>,
+    /// Depth frames left out because no colour frame was close enough in time.
+    unpaired: usize,
+    source: Source,
 }
 
 impl Recording {
-    /// Open a recording, detecting its layout (`frames.csv` → native, `rgb.txt` + `depth.txt`
-    /// → TUM).
+    /// Open a recording, detecting its layout: a folder with `frames.csv` is native, one with
+    /// `rgb.txt` + `depth.txt` is TUM; a Matroska file (by its magic number, whatever its
+    /// name) is an Azure Kinect / Orbbec Femto recording, a ROS bag a RealSense one.
     ///
     /// # Errors
-    /// [`KinectError::UnknownLayout`] when neither layout is found; otherwise the errors of
-    /// reading the calibration and the frame list.
-    pub fn open(dir: &Path) -> Result<Self> {
-        Self::open_with(dir, None)
+    /// [`KinectError::UnknownLayout`] when no layout is found; otherwise the errors of
+    /// reading the calibration and the frame list (or indexing the container).
+    pub fn open(path: &Path) -> Result<Self> {
+        Self::open_with(path, None)
     }
 
-    /// Open a recording with a given calibration (overrides the one in the directory).
+    /// Open a recording with a given calibration (overrides the one in the recording).
     ///
     /// # Errors
     /// As [`Recording::open`], and [`KinectError::InvalidParameter`] for an invalid
     /// calibration.
-    pub fn open_with_calibration(dir: &Path, calibration: Calibration) -> Result<Self> {
+    pub fn open_with_calibration(path: &Path, calibration: Calibration) -> Result<Self> {
         calibration.validate()?;
-        Self::open_with(dir, Some(calibration))
+        Self::open_with(path, Some(calibration))
     }
 
-    fn open_with(dir: &Path, calibration: Option<Calibration>) -> Result<Self> {
-        if !dir.is_dir() {
+    fn open_with(path: &Path, calibration: Option<Calibration>) -> Result<Self> {
+        if path.is_file() {
+            return Self::open_file(path, calibration);
+        }
+        if !path.is_dir() {
             return Err(KinectError::io(
-                dir,
-                std::io::Error::new(std::io::ErrorKind::NotFound, "no such directory"),
+                path,
+                std::io::Error::new(std::io::ErrorKind::NotFound, "no such file or directory"),
             ));
         }
+        let dir = path;
         let calibration_path = dir.join(CALIBRATION_FILE);
         let layout = if dir.join(FRAMES_FILE).is_file() {
             Layout::Native
@@ -114,27 +146,60 @@ impl Recording {
         };
         let calibration = match (calibration, layout) {
             (Some(c), _) => c,
-            (None, Layout::Native) => Calibration::read_json(&calibration_path)?,
-            (None, Layout::Tum) if calibration_path.is_file() => {
-                Calibration::read_json(&calibration_path)?
-            }
-            (None, Layout::Tum) => Calibration::tum_default(),
+            (None, Layout::Tum) if !calibration_path.is_file() => Calibration::tum_default(),
+            (None, _) => Calibration::read_json(&calibration_path)?,
         };
-        let entries = match layout {
-            Layout::Native => read_frames_csv(dir)?,
+        let (entries, unpaired) = match layout {
             Layout::Tum => read_tum(dir)?,
+            _ => (read_frames_csv(dir)?, 0),
         };
         Ok(Self {
-            dir: dir.to_path_buf(),
+            path: dir.to_path_buf(),
             layout,
             calibration,
-            entries,
+            times_s: entries
+                .iter()
+                .map(|e| (e.timestamp_s, e.color_timestamp_s))
+                .collect(),
+            unpaired,
+            source: Source::Files(entries),
         })
     }
 
-    /// The directory.
-    pub fn dir(&self) -> &Path {
-        &self.dir
+    fn open_file(path: &Path, calibration: Option<Calibration>) -> Result<Self> {
+        if is_matroska(path) {
+            let k4a = K4aRecording::open(path, calibration)?;
+            return Ok(Self {
+                path: path.to_path_buf(),
+                layout: Layout::AzureKinect,
+                calibration: k4a.calibration.clone(),
+                times_s: (0..k4a.len()).filter_map(|i| k4a.times_s(i)).collect(),
+                unpaired: k4a.unpaired_depth,
+                source: Source::AzureKinect(Box::new(k4a)),
+            });
+        }
+        if is_rosbag(path) {
+            let bag = BagRecording::open(path, calibration)?;
+            return Ok(Self {
+                path: path.to_path_buf(),
+                layout: Layout::RealSense,
+                calibration: bag.calibration.clone(),
+                times_s: (0..bag.len()).filter_map(|i| bag.times_s(i)).collect(),
+                unpaired: bag.unpaired_depth,
+                source: Source::RealSense(Box::new(bag)),
+            });
+        }
+        Err(KinectError::UnknownLayout {
+            path: path.to_path_buf(),
+            what: "a file that is neither a Matroska (.mkv) recording nor a ROS bag (.bag); \
+                   a folder recording is opened by its folder"
+                .into(),
+        })
+    }
+
+    /// The folder or file the recording was opened from.
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 
     /// The detected layout.
@@ -149,17 +214,37 @@ impl Recording {
 
     /// Number of frames.
     pub fn len(&self) -> usize {
-        self.entries.len()
+        self.times_s.len()
     }
 
     /// True when there are no frames.
     pub fn is_empty(&self) -> bool {
-        self.entries.is_empty()
+        self.times_s.is_empty()
     }
 
-    /// Where each frame's files are.
-    pub fn entries(&self) -> &[FrameEntry] {
-        &self.entries
+    /// Time of every frame's depth image, seconds (the device's clock for an Azure Kinect
+    /// recording: block time plus `K4A_START_OFFSET_NS`).
+    pub fn timestamps_s(&self) -> impl ExactSizeIterator<Item = f64> + '_ {
+        self.times_s.iter().map(|t| t.0)
+    }
+
+    /// Time of every frame's colour image, seconds.
+    pub fn color_timestamps_s(&self) -> impl ExactSizeIterator<Item = f64> + '_ {
+        self.times_s.iter().map(|t| t.1)
+    }
+
+    /// Depth frames the recording holds but that are not frames here, because no colour
+    /// image was close enough in time (TUM: 0.02 s; Azure Kinect: half a frame period).
+    pub fn unpaired_depth_frames(&self) -> usize {
+        self.unpaired
+    }
+
+    /// Where each frame's files are, for a folder recording; `None` for a container file.
+    pub fn entries(&self) -> Option<&[FrameEntry]> {
+        match &self.source {
+            Source::Files(entries) => Some(entries),
+            Source::AzureKinect(_) | Source::RealSense(_) => None,
+        }
     }
 
     /// Load frame `index`, checking both images against the calibration's camera sizes.
@@ -168,30 +253,53 @@ impl Recording {
     /// [`KinectError::FrameOutOfRange`]; the image readers' errors;
     /// [`KinectError::SizeMismatch`] naming the file whose size is wrong.
     pub fn frame(&self, index: usize) -> Result<Frame> {
-        let entry = self
-            .entries
-            .get(index)
-            .ok_or(KinectError::FrameOutOfRange {
-                path: self.dir.clone(),
+        let Some(&(timestamp_s, _)) = self.times_s.get(index) else {
+            return Err(KinectError::FrameOutOfRange {
+                path: self.path.clone(),
                 index,
-                count: self.entries.len(),
-            })?;
-        let color = read_color_image(&entry.color_path)?;
-        let depth = read_depth_image(&entry.depth_path, self.calibration.depth_unit_m)?;
-        let against = |path: &Path| format!("{} vs. the calibration", path.display());
+                count: self.times_s.len(),
+            });
+        };
+        // A calibration given by the caller sets the unit a container's raw depth is in.
+        let unit_m = self.calibration.depth_unit_m;
+        let container_names = || {
+            let name = format!("{} frame {index}", self.path.display());
+            (format!("{name} colour"), format!("{name} depth"))
+        };
+        let (color, depth, (color_name, depth_name)) = match &self.source {
+            Source::Files(entries) => {
+                let entry = &entries[index.min(entries.len().saturating_sub(1))];
+                let color = read_color_image(&entry.color_path)?;
+                let depth = read_depth_image(&entry.depth_path, unit_m)?;
+                let names = (
+                    entry.color_path.display().to_string(),
+                    entry.depth_path.display().to_string(),
+                );
+                (color, depth, names)
+            }
+            Source::AzureKinect(k4a) => {
+                let (color, depth) = k4a.read(&self.path, index, unit_m)?;
+                (color, depth, container_names())
+            }
+            Source::RealSense(bag) => {
+                let (color, depth) = bag.read(&self.path, index, unit_m)?;
+                (color, depth, container_names())
+            }
+        };
+        let against = |name: &str| format!("{name} vs. the calibration");
         self.calibration.color_camera.check_image_size(
-            &against(&entry.color_path),
+            &against(&color_name),
             color.width(),
             color.height(),
         )?;
         self.calibration.depth_camera.check_image_size(
-            &against(&entry.depth_path),
+            &against(&depth_name),
             depth.width(),
             depth.height(),
         )?;
         Ok(Frame {
             index,
-            timestamp_s: entry.timestamp_s,
+            timestamp_s,
             color,
             depth,
         })
@@ -199,7 +307,7 @@ impl Recording {
 
     /// All frames in order, loaded one at a time as the iterator advances.
     pub fn frames(&self) -> impl Iterator<Item = Result<Frame>> + '_ {
-        (0..self.entries.len()).map(|i| self.frame(i))
+        (0..self.len()).map(|i| self.frame(i))
     }
 }
 
@@ -309,11 +417,13 @@ fn read_tum_list(dir: &Path, name: &str) -> Result<Vec<(f64, PathBuf)>> {
     Ok(out)
 }
 
-fn read_tum(dir: &Path) -> Result<Vec<FrameEntry>> {
+/// The associated frames and the number of depth images left without a colour image.
+fn read_tum(dir: &Path) -> Result<(Vec<FrameEntry>, usize)> {
     let rgb = read_tum_list(dir, "rgb.txt")?;
     let depth = read_tum_list(dir, "depth.txt")?;
     let pairs = associate(&depth, &rgb, TUM_MAX_DIFFERENCE_S);
-    Ok(pairs
+    let unpaired = depth.len() - pairs.len();
+    let entries = pairs
         .into_iter()
         .map(|(d, c)| FrameEntry {
             timestamp_s: depth[d].0,
@@ -321,7 +431,8 @@ fn read_tum(dir: &Path) -> Result<Vec<FrameEntry>> {
             color_path: rgb[c].1.clone(),
             depth_path: depth[d].1.clone(),
         })
-        .collect())
+        .collect();
+    Ok((entries, unpaired))
 }
 
 /// Associate two sorted timestamp lists one-to-one: every pair closer than `max_difference_s`
@@ -357,6 +468,31 @@ pub fn associate<T, U>(
     }
     pairs.sort_unstable();
     pairs
+}
+
+/// Default pairing tolerance of a camera container with a single depth frame: half a 30 fps
+/// frame period, in nanoseconds.
+const SINGLE_FRAME_TOLERANCE_NS: f64 = 1e9 / 60.0;
+
+/// Pair a container's depth and colour images by time (nanoseconds): both lists are sorted,
+/// then associated one-to-one within half the median depth frame period ([`associate`]).
+/// Returns the pairs as indices into the sorted lists.
+pub(crate) fn pair_by_time<T, U>(
+    depth: &mut [(f64, T)],
+    color: &mut [(f64, U)],
+) -> Vec<(usize, usize)> {
+    depth.sort_by(|a, b| a.0.total_cmp(&b.0));
+    color.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut steps: Vec<f64> = depth
+        .windows(2)
+        .map(|w| w[1].0 - w[0].0)
+        .filter(|&s| s > 0.0)
+        .collect();
+    steps.sort_by(f64::total_cmp);
+    let tolerance = steps
+        .get(steps.len() / 2)
+        .map_or(SINGLE_FRAME_TOLERANCE_NS, |s| s / 2.0);
+    associate(depth, color, tolerance)
 }
 
 /// How the writer stores colour images.

@@ -236,7 +236,7 @@ impl Pipeline {
         }
     }
 
-    /// Run the whole method on a recording (native or TUM layout; `kinect_io::Recording`)
+    /// Run the whole method on a recording (native or TUM folder, Azure Kinect `.mkv`; `kinect_io::Recording`)
     /// with the markers of its markers file.
     ///
     /// # Errors
@@ -247,34 +247,33 @@ impl Pipeline {
     pub fn run(&self, recording: &Recording, markers: &MarkersFile) -> Result<Report> {
         let started = Instant::now();
         let bad = |reason: String| PipelineError::Recording {
-            path: recording.dir().to_path_buf(),
+            path: recording.path().to_path_buf(),
             reason,
         };
         markers.validate().map_err(|reason| markers.error(reason))?;
-        let entries = recording.entries();
-        let (Some(first), Some(last)) = (entries.first(), entries.last()) else {
+        let times: Vec<f64> = recording.timestamps_s().collect();
+        let (Some(&t0), Some(&last)) = (times.first(), times.last()) else {
             return Err(bad("no frames".into()));
         };
-        if entries.len() < 2 {
+        if times.len() < 2 {
             return Err(bad(format!(
                 "{} frame; a capture needs at least 2",
-                entries.len()
+                times.len()
             )));
         }
-        let t0 = first.timestamp_s;
-        let duration_s = last.timestamp_s - t0;
-        let frame_s = duration_s / (entries.len() - 1) as f64;
+        let duration_s = last - t0;
+        let frame_s = duration_s / (times.len() - 1) as f64;
         let calibration = recording.calibration().clone();
         let color = calibration.color_camera;
         check_windows(markers, color.width, color.height, duration_s, frame_s).map_err(
             |reason| {
                 markers.error(format!(
                     "{reason} (recording {})",
-                    recording.dir().display()
+                    recording.path().display()
                 ))
             },
         )?;
-        let setup = self.setup(calibration, markers, recording.dir())?;
+        let setup = self.setup(calibration, markers, recording.path())?;
         let produce = |i: usize| -> Result<RawFrame> {
             let frame = recording
                 .frame(i)
@@ -289,7 +288,7 @@ impl Pipeline {
         let pitch = markers.pitch_down_deg.unwrap_or(0.0).to_radians();
         let measured = self.measure(
             &setup,
-            entries.len(),
+            times.len(),
             &produce,
             camera_to_world_z_up(height, pitch),
             &markers.windows_s(),

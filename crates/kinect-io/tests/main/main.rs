@@ -14,6 +14,7 @@ use kinect_io::*;
 use nalgebra::{Isometry3, Point2, Point3};
 use proptest::prelude::*;
 
+mod containers;
 mod jpeg;
 mod properties;
 mod real_data;

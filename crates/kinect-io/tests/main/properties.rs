@@ -209,7 +209,7 @@ fn valid_pcd(ascii: bool) -> Vec<u8> {
     .expect("valid")
 }
 
-fn damage(mut bytes: Vec<u8>, cut: usize, flips: &[(usize, u8)]) -> Vec<u8> {
+pub(crate) fn damage(mut bytes: Vec<u8>, cut: usize, flips: &[(usize, u8)]) -> Vec<u8> {
     for &(at, value) in flips {
         if !bytes.is_empty() {
             let n = bytes.len();
@@ -221,7 +221,7 @@ fn damage(mut bytes: Vec<u8>, cut: usize, flips: &[(usize, u8)]) -> Vec<u8> {
     bytes
 }
 
-fn must_not_panic<T>(result: Result<T, KinectError>) {
+pub(crate) fn must_not_panic<T>(result: Result<T, KinectError>) {
     // Either outcome is fine; an error must render as text naming what is wrong.
     if let Err(e) = result {
         assert!(!e.to_string().is_empty());

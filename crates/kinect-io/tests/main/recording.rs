@@ -148,7 +148,13 @@ fn tum_layout_associates_and_converts_units() {
     assert_eq!(recording.layout(), Layout::Tum);
     // 10.200 has no colour within 0.02 s.
     assert_eq!(recording.len(), 2);
-    assert_eq!(recording.entries()[1].color_timestamp_s, 10.030);
+    assert_eq!(recording.unpaired_depth_frames(), 1);
+    assert_eq!(
+        recording.entries().expect("a folder")[1].color_timestamp_s,
+        10.030
+    );
+    assert_eq!(recording.color_timestamps_s().nth(1), Some(10.030));
+    assert_eq!(recording.timestamps_s().nth(1), Some(10.035));
     let frame = recording.frame(0).expect("frame");
     let cloud = CloudBuilder::new(recording.calibration(), CloudConfig::default())
         .expect("valid")
