@@ -1,7 +1,8 @@
-//! Turns one frame of a recording (native or TUM layout) into a textured PLY point cloud.
+//! Turns one frame of a recording (native or TUM folder, Azure Kinect / Orbbec Femto `.mkv`,
+//! RealSense `.bag`) into a textured PLY point cloud.
 //!
 //! ```text
-//! cargo run --release --example capture_to_cloud -- <RECORDING_DIR> [--frame N] [--calibration FILE] [--out cloud.ply]
+//! cargo run --release --example capture_to_cloud -- <RECORDING> [--frame N] [--calibration FILE] [--out cloud.ply]
 //! ```
 //!
 //! Prints one JSON object to stdout: `{"points": <valid points>, "width": W, "height": H,
@@ -34,7 +35,8 @@ struct Summary {
     bbox_max: [f64; 3],
 }
 
-/// One frame of a recording (native or TUM layout) as a textured PLY point cloud.
+/// One frame of a recording (native or TUM folder, Azure Kinect .mkv, RealSense .bag) as a
+/// textured PLY point cloud.
 ///
 /// Prints {"points", "width", "height", "bbox_min", "bbox_max"} (metres, depth camera
 /// frame). With no arguments, runs on a synthetic recording it writes under
@@ -42,9 +44,10 @@ struct Summary {
 #[derive(Parser, Debug)]
 #[command(name = "capture_to_cloud", version, about)]
 struct Args {
-    /// A native recording (frames.csv + calibration.json) or a TUM RGB-D folder (rgb.txt +
-    /// depth.txt; TUM's default intrinsics when it has no calibration)
-    #[arg(value_name = "RECORDING_DIR")]
+    /// A native recording (frames.csv + calibration.json), a TUM RGB-D folder (rgb.txt +
+    /// depth.txt; TUM's default intrinsics when it has no calibration), an Azure Kinect /
+    /// Orbbec Femto .mkv or a RealSense .bag (calibration read from the file)
+    #[arg(value_name = "RECORDING")]
     dir: Option<PathBuf>,
     /// Frame index
     #[arg(long, value_name = "N", default_value_t = 0, requires = "dir")]

@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo run --release --example pipeline                     # the synthetic twin
-//! cargo run --release --example pipeline -- --recording DIR --markers markers.json
+//! cargo run --release --example pipeline -- --recording DIR|FILE.mkv|FILE.bag --markers markers.json
 //! cargo run --release --example pipeline -- --write-recording DIR   # the twin, saved
 //! ```
 //!
@@ -36,7 +36,8 @@ const PROGRAM: &str = "pipeline";
 ///
 /// With no recording: the synthetic twin (a tree with known dynamics, filmed by a simulated
 /// Kinect V2), measured and compared with the truth. With --recording: a recording in the
-/// native or TUM layout (docs/recording-format.md) and the markers of its markers file
+/// native or TUM layout, an Azure Kinect .mkv or a RealSense .bag (docs/recording-format.md)
+/// and the markers of its markers file
 /// (docs/capture.md).
 #[derive(Parser, Debug)]
 #[command(name = PROGRAM, version, about, allow_negative_numbers = true)]
@@ -48,7 +49,8 @@ struct Args {
     /// Worker threads for frames and clouds [default: the machine's]
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
-    /// A recording folder (native or TUM layout) to measure instead of the twin
+    /// A recording to measure instead of the twin: a folder (native or TUM layout), an Azure
+    /// Kinect / Orbbec Femto .mkv or a RealSense .bag
     #[arg(
         long,
         value_name = "DIR",
@@ -142,6 +144,12 @@ fn run(args: &Args, measured_none: &mut bool) -> Result<(), Box<dyn std::error::
                 recording.len(),
                 markers.markers.len()
             );
+            if recording.unpaired_depth_frames() > 0 {
+                println!(
+                    "          {} depth frames had no colour image close enough in time and are left out",
+                    recording.unpaired_depth_frames()
+                );
+            }
             pipeline.run(&recording, &markers)?
         }
         (_, _, Some(dir)) => return write_recording(&pipeline, &args.twin.config(), dir),
