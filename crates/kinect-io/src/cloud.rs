@@ -223,19 +223,92 @@ impl CloudConfig {
 }
 
 enum Engine {
-    /// Rigid or already registered: per-pixel undistorted rays and the transform.
+    /// Already registered: every depth pixel takes the colour of its own pixel.
+    Registered {
+        /// Undistorted normalised ray per depth pixel, as separable factors when the camera
+        /// has no distortion (x per column, y per row) or a full table.
+        rays: Rays,
+    },
+    /// Rigid: per-pixel undistorted rays and the transform.
     Rays {
-        /// Undistorted normalised ray per depth pixel; NaN where the distortion cannot be
-        /// inverted.
-        rays: Vec<[f64; 2]>,
-        /// Depth-to-colour rotation matrix and translation (`None`: already registered).
-        depth_to_color: Option<(Matrix3<f64>, Vector3<f64>)>,
+        /// The depth camera's undistorted normalised rays.
+        rays: Rays,
+        /// Depth-to-colour rotation matrix and translation.
+        depth_to_color: (Matrix3<f64>, Vector3<f64>),
     },
     Freenect2 {
         registration: Box<Freenect2Registration>,
         frame: Freenect2Frame,
         depth_mm: Vec<f32>,
     },
+}
+
+/// A depth camera's undistorted normalised rays.
+enum Rays {
+    /// No distortion: `x = columns[u]`, `y = rows[v]`.
+    Separable { columns: Vec<f64>, rows: Vec<f64> },
+    /// One ray per pixel (NaN where the distortion cannot be inverted).
+    Table(Vec<[f64; 2]>),
+}
+
+impl Rays {
+    fn new(camera: &CameraModel) -> Self {
+        if camera.distortion.is_zero() {
+            return Self::Separable {
+                columns: (0..camera.width)
+                    .map(|u| (f64::from(u) - camera.cx) / camera.fx)
+                    .collect(),
+                rows: (0..camera.height)
+                    .map(|v| (f64::from(v) - camera.cy) / camera.fy)
+                    .collect(),
+            };
+        }
+        Self::Table(
+            camera
+                .ray_table()
+                .into_iter()
+                .map(|r| r.map_or([f64::NAN; 2], |r| [r.x, r.y]))
+                .collect(),
+        )
+    }
+
+    /// Call `f(index, raw depth, ray, slot)` for every pixel, row-major (`depth` and
+    /// `points` have the camera's pixel count).
+    #[inline]
+    fn for_each(
+        &self,
+        depth: &[u16],
+        points: &mut [Option<TexturedPoint>],
+        mut f: impl FnMut(usize, u16, [f64; 2], &mut Option<TexturedPoint>),
+    ) {
+        match self {
+            Self::Separable { columns, rows } => {
+                let w = columns.len();
+                for (v, ((&y, depth_row), point_row)) in rows
+                    .iter()
+                    .zip(depth.chunks_exact(w))
+                    .zip(points.chunks_exact_mut(w))
+                    .enumerate()
+                {
+                    for (u, ((&x, &raw), slot)) in columns
+                        .iter()
+                        .zip(depth_row)
+                        .zip(point_row.iter_mut())
+                        .enumerate()
+                    {
+                        f(v * w + u, raw, [x, y], slot);
+                    }
+                }
+            }
+            Self::Table(table) => {
+                for (i, ((&r, &raw), slot)) in
+                    table.iter().zip(depth).zip(points.iter_mut()).enumerate()
+                {
+                    f(i, raw, r, slot);
+                }
+            }
+        }
+    }
 }
 
 /// Builds organized textured clouds from depth + colour frames of one calibrated camera.
@@ -246,11 +319,18 @@ pub struct CloudBuilder {
     calibration: Calibration,
     config: CloudConfig,
     engine: Engine,
-    /// Nearest depth per colour pixel (occlusion filter), reused between frames.
-    filter_map: MinDepthMap,
-    /// The points that project onto the colour image, reused between frames.
+    /// The occlusion filter's buffers, reused between frames.
+    occlusion: Occlusion,
+}
+
+/// The occlusion filter's buffers.
+#[derive(Default)]
+struct Occlusion {
+    /// Nearest depth per colour pixel.
+    map: MinDepthMap,
+    /// The points that project onto the colour image.
     candidates: Vec<Candidate>,
-    /// Positions in `candidates` that the occlusion test's block level could not clear.
+    /// Positions in `candidates` that the test's block level could not clear.
     contested: Vec<u32>,
 }
 
@@ -285,31 +365,28 @@ impl CloudBuilder {
                     depth_mm: vec![0.0; n],
                 }
             }
-            RegistrationModel::Rigid(_) | RegistrationModel::AlreadyRegistered => Engine::Rays {
-                rays: calibration
-                    .depth_camera
-                    .ray_table()
-                    .into_iter()
-                    .map(|r| r.map_or([f64::NAN; 2], |r| [r.x, r.y]))
-                    .collect(),
-                depth_to_color: match calibration.registration {
-                    RegistrationModel::AlreadyRegistered => None,
-                    _ => calibration.depth_to_color()?.map(|t| {
-                        (
-                            t.rotation.to_rotation_matrix().into_inner(),
-                            t.translation.vector,
-                        )
-                    }),
-                },
+            RegistrationModel::AlreadyRegistered => Engine::Registered {
+                rays: Rays::new(&calibration.depth_camera),
             },
+            RegistrationModel::Rigid(e) => {
+                let t = e.to_isometry()?;
+                Engine::Rays {
+                    rays: Rays::new(&calibration.depth_camera),
+                    depth_to_color: (
+                        t.rotation.to_rotation_matrix().into_inner(),
+                        t.translation.vector,
+                    ),
+                }
+            }
         };
         Ok(Self {
             calibration: calibration.clone(),
             config,
             engine,
-            filter_map: MinDepthMap::default(),
-            candidates: Vec::with_capacity(calibration.depth_camera.pixel_count()),
-            contested: Vec::new(),
+            occlusion: Occlusion {
+                candidates: Vec::with_capacity(calibration.depth_camera.pixel_count()),
+                ..Occlusion::default()
+            },
         })
     }
 
@@ -340,7 +417,6 @@ impl CloudBuilder {
     ///
     /// # Errors
     /// As [`CloudBuilder::build`].
-    #[allow(clippy::too_many_lines)] // longer than 100 lines: the per-pixel loop is rewritten by issue 23 (clouds at twice Open3D's speed); split then
     pub fn build_into(
         &mut self,
         depth: &DepthImage,
@@ -367,7 +443,7 @@ impl CloudBuilder {
                 distortion: crate::camera::Distortion::default(),
                 ..dcam
             },
-            Engine::Rays { .. } => dcam,
+            Engine::Rays { .. } | Engine::Registered { .. } => dcam,
         };
         cloud.camera_to_cloud = self
             .config
@@ -377,120 +453,37 @@ impl CloudBuilder {
             cloud.points.clear();
             cloud.points.resize(dcam.pixel_count(), None);
         }
-        let unit_m = depth.unit_m();
-        let offset_m = self.calibration.depth_offset_m;
-        let (min_z, max_z) = (self.config.min_depth_m, self.config.max_depth_m);
-        let mut valid = 0usize;
-        match &mut self.engine {
+        let range = DepthRange {
+            unit_m: depth.unit_m(),
+            offset_m: self.calibration.depth_offset_m,
+            min_z: self.config.min_depth_m,
+            max_z: self.config.max_depth_m,
+        };
+        let frame = Inputs {
+            depth,
+            color,
+            range,
+        };
+        let valid = match &mut self.engine {
+            Engine::Registered { rays } => build_registered(rays, &frame, &mut cloud.points),
             Engine::Rays {
                 rays,
                 depth_to_color,
             } => {
-                let filter = self.config.occlusion_filter;
-                let (filter_half, filter_tolerance) = filter.map_or(((0, 0), 0.0), |f| {
-                    (
-                        (f.half_width_px as usize, f.half_height_px as usize),
-                        f.tolerance,
-                    )
-                });
-                if filter.is_some() {
-                    self.filter_map
-                        .begin_frame(ccam.width as usize, ccam.height as usize);
-                }
-                let cw = ccam.width as i64;
-                let ch = ccam.height as i64;
-                let w = dcam.width as usize;
-                self.candidates.clear();
-                for (i, ((&raw, ray), slot)) in depth
-                    .values()
-                    .iter()
-                    .zip(rays.iter())
-                    .zip(cloud.points.iter_mut())
-                    .enumerate()
-                {
-                    *slot = None;
-                    let [rx, ry] = *ray;
-                    if raw == 0 || rx.is_nan() {
-                        continue;
-                    }
-                    let z = f64::from(raw) * unit_m + offset_m;
-                    if !(z > min_z && z <= max_z) {
-                        continue;
-                    }
-                    let p = Point3::new(rx * z, ry * z, z);
-                    valid += 1;
-                    *slot = Some(TexturedPoint {
-                        position_m: p,
-                        rgb: None,
-                    });
-                    // Colour pixel of this point.
-                    let (cu, cv, zc) = match depth_to_color {
-                        None => ((i % w) as i64, (i / w) as i64, z),
-                        Some((r, t)) => {
-                            let pc = Point3::from(*r * p.coords + *t);
-                            let Some(px) = ccam.project(&pc) else {
-                                continue;
-                            };
-                            // Truncation is rounding half up here: both are >= 0.
-                            let (cu, cv) = (px.x + 0.5, px.y + 0.5);
-                            if !(cu >= 0.0 && cv >= 0.0 && cu < cw as f64 && cv < ch as f64) {
-                                continue;
-                            }
-                            (cu as i64, cv as i64, pc.z)
-                        }
-                    };
-                    let depth_q = zbuffer::quantise(zc);
-                    if filter.is_some() {
-                        self.filter_map
-                            .lower_coarse((cu as usize, cv as usize), depth_q);
-                    }
-                    self.candidates.push(Candidate {
-                        index: i as u32,
-                        color_u: cu as u32,
-                        color_v: cv as u32,
-                        depth_q,
-                    });
-                }
-                // Colours. The occlusion test (libfreenect2's: the nearest depth the colour
-                // camera sees within the window around the point's colour pixel, which
-                // libfreenect2 spreads over the window and this gathers, the same for a
-                // symmetric window) runs in two steps: the block level clears most points;
-                // the fine level is filled and asked only around the contested ones.
-                let raw = color.as_raw();
-                let paint = |cloud: &mut TexturedCloud, c: &Candidate| {
-                    if let Some(point) = cloud.points[c.index as usize].as_mut() {
-                        let at = 3 * (c.color_v as usize * cw as usize + c.color_u as usize);
-                        point.rgb = Some([raw[at], raw[at + 1], raw[at + 2]]);
-                    }
+                let rigid = Rigid {
+                    rays,
+                    depth_to_color: *depth_to_color,
+                    camera: &ccam,
+                    filter: self.config.occlusion_filter,
                 };
-                let limit = |c: &Candidate| f64::from(c.depth_q) * (1.0 - filter_tolerance);
-                let at = |c: &Candidate| (c.color_u as usize, c.color_v as usize);
-                self.contested.clear();
-                for (k, c) in self.candidates.iter().enumerate() {
-                    if filter.is_some() && self.filter_map.contested(at(c), filter_half, limit(c)) {
-                        self.contested.push(k as u32);
-                    } else {
-                        paint(cloud, c);
-                    }
-                }
-                if !self.contested.is_empty() {
-                    for c in &self.candidates {
-                        self.filter_map.lower_fine_if_needed(at(c), c.depth_q);
-                    }
-                    for &k in &self.contested {
-                        let c = &self.candidates[k as usize];
-                        if !self.filter_map.occluded(at(c), filter_half, limit(c)) {
-                            paint(cloud, c);
-                        }
-                    }
-                }
+                rigid.build(&frame, &mut self.occlusion, &mut cloud.points)
             }
             Engine::Freenect2 {
                 registration,
-                frame,
+                frame: registered,
                 depth_mm,
             } => {
-                let scale_mm = (unit_m * 1000.0) as f32;
+                let scale_mm = (range.unit_m * 1000.0) as f32;
                 for (out, &raw) in depth_mm.iter_mut().zip(depth.values()) {
                     *out = f32::from(raw) * scale_mm;
                 }
@@ -498,33 +491,11 @@ impl CloudBuilder {
                     depth_mm,
                     color,
                     self.config.occlusion_filter.is_some(),
-                    frame,
+                    registered,
                 )?;
-                let (fx, fy, cx, cy) = (dcam.fx, dcam.fy, dcam.cx, dcam.cy);
-                let w = dcam.width as usize;
-                cloud.points.fill(None);
-                for (i, (&z_mm, rgb)) in frame
-                    .undistorted_mm
-                    .iter()
-                    .zip(frame.registered.iter())
-                    .enumerate()
-                {
-                    if z_mm.is_nan() || z_mm <= 0.0 {
-                        continue;
-                    }
-                    let z = f64::from(z_mm) * 1e-3 + offset_m;
-                    if !(z > min_z && z <= max_z) {
-                        continue;
-                    }
-                    let (u, v) = ((i % w) as f64, (i / w) as f64);
-                    valid += 1;
-                    cloud.points[i] = Some(TexturedPoint {
-                        position_m: Point3::new((u - cx) / fx * z, (v - cy) / fy * z, z),
-                        rgb: *rgb,
-                    });
-                }
+                freenect2_points(&dcam, registered, range, &mut cloud.points)
             }
-        }
+        };
         if valid == 0 {
             return Err(KinectError::NoValidDepth {
                 what: format!("depth frame {}x{} px", depth.width(), depth.height()),
@@ -537,6 +508,223 @@ impl CloudBuilder {
         }
         Ok(())
     }
+}
+
+/// How raw depth becomes metres, and which depths are kept.
+#[derive(Debug, Clone, Copy)]
+struct DepthRange {
+    unit_m: f64,
+    offset_m: f64,
+    min_z: f64,
+    max_z: f64,
+}
+
+impl DepthRange {
+    /// The depth in metres of a raw value, when it is a measurement inside the range.
+    #[inline]
+    fn metres(&self, raw: u16) -> Option<f64> {
+        let z = f64::from(raw) * self.unit_m + self.offset_m;
+        (raw != 0 && z > self.min_z && z <= self.max_z).then_some(z)
+    }
+}
+
+/// One frame's images and depth conversion.
+struct Inputs<'a> {
+    depth: &'a DepthImage,
+    color: &'a RgbImage,
+    range: DepthRange,
+}
+
+/// The colour of pixel `(u, v)` of a packed RGB buffer `width` pixels wide.
+#[inline]
+fn rgb_at(raw: &[u8], width: usize, u: usize, v: usize) -> [u8; 3] {
+    let at = 3 * (v * width + u);
+    [raw[at], raw[at + 1], raw[at + 2]]
+}
+
+/// Already registered: every point takes its own pixel's colour. Returns the valid count.
+fn build_registered(
+    rays: &Rays,
+    frame: &Inputs<'_>,
+    points: &mut [Option<TexturedPoint>],
+) -> usize {
+    // The camera's driver registered depth to colour (and so resolved occlusion): every
+    // point takes its own pixel's colour, as TUM's tools and Open3D do.
+    let rgb = frame.color.as_raw();
+    let mut valid = 0;
+    rays.for_each(frame.depth.values(), points, |i, raw, [rx, ry], slot| {
+        *slot = match frame.range.metres(raw) {
+            Some(z) if !rx.is_nan() => {
+                valid += 1;
+                Some(TexturedPoint {
+                    position_m: Point3::new(rx * z, ry * z, z),
+                    rgb: Some([rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]]),
+                })
+            }
+            _ => None,
+        };
+    });
+    valid
+}
+
+/// A rigid two-camera registration, for one frame.
+struct Rigid<'a> {
+    rays: &'a Rays,
+    depth_to_color: (Matrix3<f64>, Vector3<f64>),
+    camera: &'a CameraModel,
+    filter: Option<OcclusionFilter>,
+}
+
+impl Rigid<'_> {
+    /// Points, and their colours where the colour camera sees them. Returns the valid count.
+    fn build(
+        &self,
+        frame: &Inputs<'_>,
+        occlusion: &mut Occlusion,
+        points: &mut [Option<TexturedPoint>],
+    ) -> usize {
+        let ccam = self.camera;
+        let (r, t) = self.depth_to_color;
+        let (cw, ch) = (ccam.width as usize, ccam.height as usize);
+        if self.filter.is_some() {
+            occlusion.map.begin_frame(cw, ch);
+        }
+        occlusion.candidates.clear();
+        let raw_rgb = frame.color.as_raw();
+        let (cwf, chf) = (cw as f64, ch as f64);
+        let (fx, fy, cx, cy) = (ccam.fx, ccam.fy, ccam.cx, ccam.cy);
+        let distortion = ccam.distortion;
+        let distorted = !distortion.is_zero();
+        let mut valid = 0;
+        self.rays
+            .for_each(frame.depth.values(), points, |i, raw, [rx, ry], slot| {
+                let z = match frame.range.metres(raw) {
+                    Some(z) if !rx.is_nan() => z,
+                    _ => {
+                        *slot = None;
+                        return;
+                    }
+                };
+                let p = Point3::new(rx * z, ry * z, z);
+                valid += 1;
+                // Colour pixel of this point (the colour camera's projection, inlined).
+                let pc = r * p.coords + t;
+                let mut rgb = None;
+                if pc.z > 0.0 {
+                    let (x, y) = if distorted {
+                        distortion.apply_to_point(pc.x, pc.y, pc.z)
+                    } else {
+                        let inv_z = 1.0 / pc.z;
+                        (pc.x * inv_z, pc.y * inv_z)
+                    };
+                    // Truncation is rounding half up here: both are >= 0.
+                    let (cu, cv) = (fx * x + cx + 0.5, fy * y + cy + 0.5);
+                    if cu >= 0.0 && cv >= 0.0 && cu < cwf && cv < chf {
+                        let (cu, cv) = (cu as u32, cv as u32);
+                        if self.filter.is_none() {
+                            rgb = Some(rgb_at(raw_rgb, cw, cu as usize, cv as usize));
+                        } else {
+                            let depth_q = zbuffer::quantise(pc.z);
+                            occlusion
+                                .map
+                                .lower_coarse((cu as usize, cv as usize), depth_q);
+                            occlusion.candidates.push(Candidate {
+                                index: i as u32,
+                                color_u: cu,
+                                color_v: cv,
+                                depth_q,
+                            });
+                        }
+                    }
+                }
+                *slot = Some(TexturedPoint { position_m: p, rgb });
+            });
+        if let Some(filter) = self.filter {
+            occlusion.paint(filter, raw_rgb, cw, points);
+        }
+        valid
+    }
+}
+
+impl Occlusion {
+    /// Colour the candidates the colour camera sees. The occlusion test (libfreenect2's: the
+    /// nearest depth the colour camera sees within the window around the point's colour
+    /// pixel, which libfreenect2 spreads over the window and this gathers, the same for a
+    /// symmetric window) runs in two steps: the block level clears most points; the fine
+    /// level is filled and asked only around the contested ones.
+    fn paint(
+        &mut self,
+        filter: OcclusionFilter,
+        raw_rgb: &[u8],
+        width: usize,
+        points: &mut [Option<TexturedPoint>],
+    ) {
+        let half = (
+            filter.half_width_px as usize,
+            filter.half_height_px as usize,
+        );
+        let limit = |c: &Candidate| f64::from(c.depth_q) * (1.0 - filter.tolerance);
+        let at = |c: &Candidate| (c.color_u as usize, c.color_v as usize);
+        let mut paint = |c: &Candidate| {
+            if let Some(point) = points[c.index as usize].as_mut() {
+                point.rgb = Some(rgb_at(raw_rgb, width, at(c).0, at(c).1));
+            }
+        };
+        self.contested.clear();
+        for (k, c) in self.candidates.iter().enumerate() {
+            if self.map.contested(at(c), half, limit(c)) {
+                self.contested.push(k as u32);
+            } else {
+                paint(c);
+            }
+        }
+        if self.contested.is_empty() {
+            return;
+        }
+        for c in &self.candidates {
+            self.map.lower_fine_if_needed(at(c), c.depth_q);
+        }
+        for &k in &self.contested {
+            let c = &self.candidates[k as usize];
+            if !self.map.occluded(at(c), half, limit(c)) {
+                paint(c);
+            }
+        }
+    }
+}
+
+/// The points of libfreenect2's registered frame. Returns the valid count.
+fn freenect2_points(
+    dcam: &CameraModel,
+    registered: &Freenect2Frame,
+    range: DepthRange,
+    points: &mut [Option<TexturedPoint>],
+) -> usize {
+    let (fx, fy, cx, cy) = (dcam.fx, dcam.fy, dcam.cx, dcam.cy);
+    let w = dcam.width as usize;
+    let mut valid = 0;
+    points.fill(None);
+    for (i, (&z_mm, rgb)) in registered
+        .undistorted_mm
+        .iter()
+        .zip(registered.registered.iter())
+        .enumerate()
+    {
+        if z_mm.is_nan() || z_mm <= 0.0 {
+            continue;
+        }
+        let z = f64::from(z_mm) * 1e-3 + range.offset_m;
+        if !(z > range.min_z && z <= range.max_z) {
+            continue;
+        }
+        let (u, v) = ((i % w) as f64, (i / w) as f64);
+        valid += 1;
+        points[i] = Some(TexturedPoint {
+            position_m: Point3::new((u - cx) / fx * z, (v - cy) / fy * z, z),
+            rgb: *rgb,
+        });
+    }
+    valid
 }
 
 #[cfg(test)]

@@ -22,8 +22,10 @@ pub(crate) struct MinDepthMap {
     age: u32,
 }
 
-/// Coarse blocks of the occlusion map are 8x8 colour pixels.
-const COARSE_SHIFT: u32 = 3;
+/// Coarse blocks of the occlusion map are 2x2 colour pixels: finer blocks contest fewer points
+/// on slanted surfaces (measured on the Azure Kinect and Kinect V2 frames of the
+/// `kinect_io` bench: 8x8 blocks 20-30 % slower with the filter on).
+const COARSE_SHIFT: u32 = 1;
 
 impl MinDepthMap {
     pub(crate) fn begin_frame(&mut self, width: usize, height: usize) {

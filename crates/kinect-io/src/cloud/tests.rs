@@ -115,8 +115,8 @@ fn occlusion_filter_matches_a_brute_force_reference() {
     builder.build(&near_wall, &frame.color).expect("ok");
     let cloud = builder.build(&frame.depth, &frame.color).expect("ok");
     // Both steps of the test ran: some points were contested and went to the fine level.
-    assert!(!builder.contested.is_empty());
-    assert!(builder.contested.len() < builder.candidates.len());
+    assert!(!builder.occlusion.contested.is_empty());
+    assert!(builder.occlusion.contested.len() < builder.occlusion.candidates.len());
     // Reference: every point's colour pixel and colour-camera depth, then for each point
     // the nearest depth of any point whose colour pixel is within the window.
     let t = calibration.depth_to_color().expect("ok").expect("rigid");

@@ -185,7 +185,10 @@ fn realsense_bag_from_rosbags_matches_its_native_copy() {
         .zip(bag.timestamps_s())
         .map(|(c, d)| c - d)
         .collect();
-    assert!(colour_lag.iter().all(|l| (l - 0.003).abs() < 1e-6), "{colour_lag:?}");
+    assert!(
+        colour_lag.iter().all(|l| (l - 0.003).abs() < 1e-6),
+        "{colour_lag:?}"
+    );
     let native = Recording::open(&fixture("realsense_native")).expect("open");
     assert_same_as_native(&bag, &native);
 }
@@ -203,7 +206,9 @@ fn damaged_realsense_bags_say_what_is_wrong() {
     let mut other = bytes.clone();
     assert!(replace_all(&mut other, b"Depth_0", b"Dxpth_0") > 0);
     std::fs::write(&path, &other).expect("write");
-    let err = Recording::open(&path).expect_err("no depth topic").to_string();
+    let err = Recording::open(&path)
+        .expect_err("no depth topic")
+        .to_string();
     assert!(err.contains("Dxpth_0") && err.contains("cut.bag"), "{err}");
 }
 
