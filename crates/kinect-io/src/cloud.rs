@@ -247,8 +247,8 @@ enum Engine {
 enum Rays {
     /// No distortion: `x = columns[u]`, `y = rows[v]`.
     Separable { columns: Vec<f64>, rows: Vec<f64> },
-    /// One ray per pixel (NaN where the distortion cannot be inverted).
-    Table(Vec<[f64; 2]>),
+    /// One ray per pixel, x and y apart (NaN where the distortion cannot be inverted).
+    Table { xs: Vec<f64>, ys: Vec<f64> },
 }
 
 impl Rays {
@@ -263,13 +263,33 @@ impl Rays {
                     .collect(),
             };
         }
-        Self::Table(
-            camera
-                .ray_table()
-                .into_iter()
-                .map(|r| r.map_or([f64::NAN; 2], |r| [r.x, r.y]))
-                .collect(),
-        )
+        let table = camera.ray_table();
+        Self::Table {
+            xs: table.iter().map(|r| r.map_or(f64::NAN, |r| r.x)).collect(),
+            ys: table.iter().map(|r| r.map_or(f64::NAN, |r| r.y)).collect(),
+        }
+    }
+
+    /// The rays of row `v` (`width` pixels), x and y; `y_fill` holds the row's y when the
+    /// rays are separable.
+    #[inline]
+    fn row<'a>(
+        &'a self,
+        v: usize,
+        width: usize,
+        y_fill: &'a mut Vec<f64>,
+    ) -> (&'a [f64], &'a [f64]) {
+        match self {
+            Self::Separable { columns, rows } => {
+                y_fill.clear();
+                y_fill.resize(width, rows[v]);
+                (columns, y_fill)
+            }
+            Self::Table { xs, ys } => {
+                let range = v * width..(v + 1) * width;
+                (&xs[range.clone()], &ys[range])
+            }
+        }
     }
 
     /// Call `f(index, raw depth, ray, slot)` for every pixel, row-major (`depth` and
@@ -300,11 +320,15 @@ impl Rays {
                     }
                 }
             }
-            Self::Table(table) => {
-                for (i, ((&r, &raw), slot)) in
-                    table.iter().zip(depth).zip(points.iter_mut()).enumerate()
+            Self::Table { xs, ys } => {
+                for (i, (((&x, &y), &raw), slot)) in xs
+                    .iter()
+                    .zip(ys)
+                    .zip(depth)
+                    .zip(points.iter_mut())
+                    .enumerate()
                 {
-                    f(i, raw, r, slot);
+                    f(i, raw, [x, y], slot);
                 }
             }
         }
@@ -332,6 +356,10 @@ struct Occlusion {
     candidates: Vec<Candidate>,
     /// Positions in `candidates` that the test's block level could not clear.
     contested: Vec<u32>,
+    /// Row scratch of the rigid engine.
+    rows: RowBuffers,
+    /// A row of y rays, for separable cameras.
+    row_y: Vec<f64>,
 }
 
 /// A point that projects onto the colour image: its depth pixel (flat index), its colour
@@ -584,7 +612,6 @@ impl Rigid<'_> {
         points: &mut [Option<TexturedPoint>],
     ) -> usize {
         let ccam = self.camera;
-        let (r, t) = self.depth_to_color;
         let (cw, ch) = (ccam.width as usize, ccam.height as usize);
         if self.filter.is_some() {
             occlusion.map.begin_frame(cw, ch);
@@ -592,57 +619,135 @@ impl Rigid<'_> {
         occlusion.candidates.clear();
         let raw_rgb = frame.color.as_raw();
         let (cwf, chf) = (cw as f64, ch as f64);
-        let (fx, fy, cx, cy) = (ccam.fx, ccam.fy, ccam.cx, ccam.cy);
-        let distortion = ccam.distortion;
-        let distorted = !distortion.is_zero();
+        let w = frame.depth.width() as usize;
+        let rows = &mut occlusion.rows;
         let mut valid = 0;
-        self.rays
-            .for_each(frame.depth.values(), points, |i, raw, [rx, ry], slot| {
-                let z = match frame.range.metres(raw) {
-                    Some(z) if !rx.is_nan() => z,
-                    _ => {
-                        *slot = None;
-                        return;
-                    }
-                };
-                let p = Point3::new(rx * z, ry * z, z);
-                valid += 1;
-                // Colour pixel of this point (the colour camera's projection, inlined).
-                let pc = r * p.coords + t;
+        for (v, (depth_row, point_row)) in frame
+            .depth
+            .values()
+            .chunks_exact(w)
+            .zip(points.chunks_exact_mut(w))
+            .enumerate()
+        {
+            let (xs, ys) = self.rays.row(v, w, &mut occlusion.row_y);
+            // The row's valid points, gathered; then their colour pixels without branches, so
+            // that the compiler can vectorise the projection; then colours or candidates.
+            rows.gather(frame.range, (xs, ys, depth_row), point_row);
+            valid += rows.at.len();
+            self.project(rows);
+            for k in 0..rows.at.len() {
+                let u = rows.at[k] as usize;
+                let (cu, cv, zc) = (rows.u[k], rows.v[k], rows.z[k]);
                 let mut rgb = None;
-                if pc.z > 0.0 {
-                    let (x, y) = if distorted {
-                        distortion.apply_to_point(pc.x, pc.y, pc.z)
+                // Truncation is rounding half up here: both are >= 0.
+                if zc > 0.0 && cu >= 0.0 && cv >= 0.0 && cu < cwf && cv < chf {
+                    let (cu, cv) = (cu as u32, cv as u32);
+                    if self.filter.is_none() {
+                        rgb = Some(rgb_at(raw_rgb, cw, cu as usize, cv as usize));
                     } else {
-                        let inv_z = 1.0 / pc.z;
-                        (pc.x * inv_z, pc.y * inv_z)
-                    };
-                    // Truncation is rounding half up here: both are >= 0.
-                    let (cu, cv) = (fx * x + cx + 0.5, fy * y + cy + 0.5);
-                    if cu >= 0.0 && cv >= 0.0 && cu < cwf && cv < chf {
-                        let (cu, cv) = (cu as u32, cv as u32);
-                        if self.filter.is_none() {
-                            rgb = Some(rgb_at(raw_rgb, cw, cu as usize, cv as usize));
-                        } else {
-                            let depth_q = zbuffer::quantise(pc.z);
-                            occlusion
-                                .map
-                                .lower_coarse((cu as usize, cv as usize), depth_q);
-                            occlusion.candidates.push(Candidate {
-                                index: i as u32,
-                                color_u: cu,
-                                color_v: cv,
-                                depth_q,
-                            });
-                        }
+                        let depth_q = zbuffer::quantise(zc);
+                        occlusion
+                            .map
+                            .lower_coarse((cu as usize, cv as usize), depth_q);
+                        occlusion.candidates.push(Candidate {
+                            index: (v * w + u) as u32,
+                            color_u: cu,
+                            color_v: cv,
+                            depth_q,
+                        });
                     }
                 }
-                *slot = Some(TexturedPoint { position_m: p, rgb });
-            });
+                point_row[u] = Some(TexturedPoint {
+                    position_m: Point3::new(rows.px[k], rows.py[k], rows.pz[k]),
+                    rgb,
+                });
+            }
+        }
         if let Some(filter) = self.filter {
             occlusion.paint(filter, raw_rgb, cw, points);
         }
         valid
+    }
+}
+
+impl Rigid<'_> {
+    /// Colour-camera pixel coordinates (plus half a pixel) and depth of the gathered points.
+    #[inline]
+    fn project(&self, rows: &mut RowBuffers) {
+        let (r, t) = self.depth_to_color;
+        let c = self.camera;
+        let (fx, fy, cx, cy) = (c.fx, c.fy, c.cx + 0.5, c.cy + 0.5);
+        let d = c.distortion;
+        let distorted = !d.is_zero();
+        let n = rows.at.len();
+        for buffer in [&mut rows.u, &mut rows.v, &mut rows.z] {
+            buffer.resize(n, 0.0);
+        }
+        let inputs = rows.px.iter().zip(&rows.py).zip(&rows.pz);
+        let outputs = rows
+            .u
+            .iter_mut()
+            .zip(rows.v.iter_mut())
+            .zip(rows.z.iter_mut());
+        for (((&px, &py), &pz), ((u, v), z)) in inputs.zip(outputs) {
+            let qx = r[(0, 0)] * px + r[(0, 1)] * py + r[(0, 2)] * pz + t.x;
+            let qy = r[(1, 0)] * px + r[(1, 1)] * py + r[(1, 2)] * pz + t.y;
+            let qz = r[(2, 0)] * px + r[(2, 1)] * py + r[(2, 2)] * pz + t.z;
+            let (x, y) = if distorted {
+                d.apply_to_point(qx, qy, qz)
+            } else {
+                (qx / qz, qy / qz)
+            };
+            *u = fx * x + cx;
+            *v = fy * y + cy;
+            *z = qz;
+        }
+    }
+}
+
+/// Per-row scratch of the rigid engine: the row's valid points (column, position) and their
+/// colour pixel coordinates and depths in the colour camera.
+#[derive(Debug, Default)]
+struct RowBuffers {
+    at: Vec<u32>,
+    px: Vec<f64>,
+    py: Vec<f64>,
+    pz: Vec<f64>,
+    u: Vec<f64>,
+    v: Vec<f64>,
+    z: Vec<f64>,
+}
+
+impl RowBuffers {
+    /// Gather a row's valid points; every other slot of the row becomes `None`.
+    #[inline]
+    fn gather(
+        &mut self,
+        range: DepthRange,
+        (xs, ys, depth): (&[f64], &[f64], &[u16]),
+        point_row: &mut [Option<TexturedPoint>],
+    ) {
+        self.at.clear();
+        self.px.clear();
+        self.py.clear();
+        self.pz.clear();
+        for (u, (((&rx, &ry), &raw), slot)) in xs
+            .iter()
+            .zip(ys)
+            .zip(depth)
+            .zip(point_row.iter_mut())
+            .enumerate()
+        {
+            *slot = None;
+            if let Some(z) = range.metres(raw)
+                && !rx.is_nan()
+            {
+                self.at.push(u as u32);
+                self.px.push(rx * z);
+                self.py.push(ry * z);
+                self.pz.push(z);
+            }
+        }
     }
 }
 
