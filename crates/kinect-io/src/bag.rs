@@ -422,20 +422,10 @@ impl BagRecording {
         let (color_label, depth_label) = (label("colour"), label("depth"));
         let color = with_message(&bag, c, &color_label, |bytes| {
             let m = parse_image(bytes, &color_label)?;
-            let layout = match m.encoding {
-                "rgb8" => RawColor::Rgb8,
-                "bgr8" => RawColor::Bgr8,
-                "rgba8" => RawColor::Rgba8,
-                "bgra8" => RawColor::Bgra8,
-                "yuv422" | "uyvy" => RawColor::Uyvy,
-                "yuv422_yuy2" | "yuyv" => RawColor::Yuy2,
-                other => {
-                    return Err(KinectError::Unsupported {
-                        path: color_label.clone(),
-                        what: format!("colour encoding {other:?}"),
-                    });
-                }
-            };
+            let layout = color_layout(m.encoding).ok_or_else(|| KinectError::Unsupported {
+                path: color_label.clone(),
+                what: format!("colour encoding {:?}", m.encoding),
+            })?;
             to_rgb(
                 layout,
                 m.width,
@@ -447,7 +437,7 @@ impl BagRecording {
         })?;
         let depth = with_message(&bag, d, &depth_label, |bytes| {
             let m = parse_image(bytes, &depth_label)?;
-            if !matches!(m.encoding, "16UC1" | "mono16") {
+            if !matches!(m.encoding.to_ascii_lowercase().as_str(), "16uc1" | "mono16") {
                 return Err(KinectError::Unsupported {
                     path: depth_label.clone(),
                     what: format!("depth encoding {:?} (16UC1 or mono16 are read)", m.encoding),
@@ -481,6 +471,21 @@ impl BagRecording {
         })?;
         Ok((color, depth))
     }
+}
+
+/// The pixel layout of a colour image's ROS encoding. ROS names UYVY `yuv422` and YUYV
+/// `yuv422_yuy2`; librealsense writes its UYVY as `yuv422` and its YUYV as `YUYV` (the
+/// format's own name), so names are compared without case.
+fn color_layout(encoding: &str) -> Option<RawColor> {
+    Some(match encoding.to_ascii_lowercase().as_str() {
+        "rgb8" => RawColor::Rgb8,
+        "bgr8" => RawColor::Bgr8,
+        "rgba8" => RawColor::Rgba8,
+        "bgra8" => RawColor::Bgra8,
+        "yuv422" | "uyvy" => RawColor::Uyvy,
+        "yuv422_yuy2" | "yuyv" | "yuy2" => RawColor::Yuy2,
+        _ => return None,
+    })
 }
 
 /// Run `f` on the bytes of the message at `at`.
@@ -625,5 +630,14 @@ mod tests {
         );
         assert_eq!(classify("/device_0/sensor_0/Infrared_1/image/data"), None);
         assert_eq!(classify("/camera/depth/image_raw"), None);
+    }
+
+    #[test]
+    fn ros_and_librealsense_colour_encodings() {
+        assert_eq!(color_layout("rgb8"), Some(RawColor::Rgb8));
+        assert_eq!(color_layout("yuv422"), Some(RawColor::Uyvy));
+        assert_eq!(color_layout("YUYV"), Some(RawColor::Yuy2));
+        assert_eq!(color_layout("yuv422_yuy2"), Some(RawColor::Yuy2));
+        assert_eq!(color_layout("bayer_rggb8"), None);
     }
 }
