@@ -13,6 +13,10 @@
 //!   0.001 m when absent, the SDK's default);
 //! - colour and depth paired by time within half the depth frame period.
 //!
+//! A bag recorded from a ROS driver instead (`realsense-ros` and others: `rosbag record` of
+//! `.../aligned_depth_to_color/image_raw`, `.../color/image_raw` and the colour
+//! `camera_info`) is read as depth already registered to colour, in millimetres.
+//!
 //! Not read: IMU, IR, pose streams, the bag's other options and metadata. A bag without an
 //! index (a recording cut short) is refused: `rosbag reindex` repairs it.
 
@@ -325,12 +329,12 @@ impl BagRecording {
         let mut depth = Stream::default();
         let mut color = Stream::default();
         let mut units = None;
-        let mut topics = Vec::new();
+        let mut connections = Vec::new();
         let mut chunks = Vec::new();
         for record in bag.index_records() {
             match record.map_err(rosbag_error)? {
                 IndexRecord::Connection(c) => {
-                    topics.push(c.topic.to_owned());
+                    connections.push((c.id, c.topic.to_owned(), c.tp.to_owned()));
                     if c.topic.ends_with("/option/Depth Units/value") {
                         units = Some(c.id);
                     }
@@ -352,14 +356,31 @@ impl BagRecording {
                 IndexRecord::IndexData(_) => {}
             }
         }
+        // Not the SDK's own layout: a ROS driver's aligned depth (realsense-ros and others).
+        let aligned = if depth.image.is_none() || color.image.is_none() {
+            let found = aligned_topics(&connections).ok_or_else(|| {
+                KinectError::format(
+                    path,
+                    format!(
+                        "no RealSense depth and colour image topics \
+                         (/device_0/sensor_N/Depth_0/image/data, .../Color_0/image/data) and \
+                         no ROS driver's .../aligned_depth_to_color/image_raw with its colour \
+                         image and camera_info; topics: {:?}",
+                        connections.iter().map(|c| &c.1).collect::<Vec<_>>()
+                    ),
+                )
+            })?;
+            depth.image = Some(found.0);
+            color.image = Some(found.1);
+            color.info = Some(found.2);
+            true
+        } else {
+            false
+        };
         let (Some(depth_image), Some(color_image)) = (depth.image, color.image) else {
             return Err(KinectError::format(
                 path,
-                format!(
-                    "no RealSense depth and colour image topics \
-                     (/device_0/sensor_N/Depth_0/image/data, .../Color_0/image/data); \
-                     topics: {topics:?}"
-                ),
+                "no depth or colour topic (internal)",
             ));
         };
         chunks.sort_unstable();
@@ -387,6 +408,7 @@ impl BagRecording {
             .collect();
         let calibration = match given {
             Some(c) => c,
+            None if aligned => aligned_calibration(path, &small, color.info)?,
             None => bag_calibration(path, &small, &depth, &color, units)?,
         };
         Ok(Self {
@@ -567,6 +589,50 @@ fn scan_chunks(
         }
     }
     Ok(scan)
+}
+
+/// A ROS driver's aligned-depth topics: `(depth image, colour image, colour camera_info)`.
+/// The depth topic is the `sensor_msgs/Image` whose name holds `aligned_depth_to_color` and
+/// ends in `image_raw`; the colour image is the one image topic under a `color` namespace
+/// ending in `image_raw` or `image_rect_color`; its `camera_info` is its sibling.
+fn aligned_topics(connections: &[(u32, String, String)]) -> Option<(u32, u32, u32)> {
+    let images = || connections.iter().filter(|c| c.2 == "sensor_msgs/Image");
+    let depth =
+        images().find(|c| c.1.contains("aligned_depth_to_color") && c.1.ends_with("/image_raw"))?;
+    let color = images().find(|c| {
+        c.1.contains("/color/")
+            && !c.1.contains("aligned_depth")
+            && (c.1.ends_with("/image_raw") || c.1.ends_with("/image_rect_color"))
+    })?;
+    let parent = &color.1[..color.1.rfind('/')?];
+    let info = connections
+        .iter()
+        .find(|c| c.1 == format!("{parent}/camera_info") && c.2 == "sensor_msgs/CameraInfo")?;
+    Some((depth.0, color.0, info.0))
+}
+
+/// The calibration of aligned depth: both images in the colour camera, depth in millimetres
+/// (ROS REP 118: `16UC1` depth images are millimetres).
+fn aligned_calibration(
+    path: &Path,
+    small: &HashMap<u32, Vec<u8>>,
+    color_info: Option<u32>,
+) -> Result<Calibration> {
+    let info = color_info.and_then(|id| small.get(&id)).ok_or_else(|| {
+        KinectError::calibration(path, "no colour camera_info message in the bag")
+    })?;
+    let camera = parse_camera_info(info, path, "colour")?;
+    let calibration = Calibration {
+        depth_camera: camera,
+        color_camera: camera,
+        registration: RegistrationModel::AlreadyRegistered,
+        depth_unit_m: DEPTH_UNIT_MM_M,
+        depth_offset_m: 0.0,
+    };
+    calibration
+        .validate()
+        .map_err(|e| KinectError::calibration(path, e.to_string()))?;
+    Ok(calibration)
 }
 
 /// The calibration a RealSense bag records.
