@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo run --release --example pipeline                     # the synthetic twin
-//! cargo run --release --example pipeline -- --recording DIR|FILE.mkv|FILE.bag --markers markers.json
+//! cargo run --release --example pipeline -- --recording DIR|FILE.mkv|FILE.bag --markers markers.json [--calibration FILE]
 //! cargo run --release --example pipeline -- --write-recording DIR   # the twin, saved
 //! ```
 //!
@@ -25,7 +25,7 @@ use std::process::ExitCode;
 use std::sync::Arc;
 
 use clap::Parser;
-use treemocap::kinect_io::{ColorFormat, Recording};
+use treemocap::kinect_io::{Calibration, ColorFormat, Recording};
 use treemocap::mocap_pipeline::twin::{TRACK_TOLERANCE_PX, TWIN_JPEG_QUALITY, Twin, TwinConfig};
 use treemocap::mocap_pipeline::{MarkersFile, Pipeline, PipelineConfig, Report, report};
 
@@ -61,6 +61,10 @@ struct Args {
     /// The recording's markers file (markers.json, docs/capture.md)
     #[arg(long, value_name = "FILE", requires = "recording")]
     markers: Option<PathBuf>,
+    /// A calibration to use instead of the recording's own (our calibration JSON, or an
+    /// iai_kinect2 folder / calib_*.yaml file)
+    #[arg(long, value_name = "FILE", requires = "recording")]
+    calibration: Option<PathBuf>,
     /// Save the twin's capture as a native recording with its markers.json, then stop
     #[arg(long, value_name = "DIR")]
     write_recording: Option<PathBuf>,
@@ -136,7 +140,10 @@ fn run(args: &Args, measured_none: &mut bool) -> Result<(), Box<dyn std::error::
     let report = match (&args.recording, &args.markers, &args.write_recording) {
         (Some(dir), Some(markers), _) => {
             let markers = MarkersFile::read(markers)?;
-            let recording = Recording::open(dir)?;
+            let recording = match &args.calibration {
+                Some(path) => Recording::open_with_calibration(dir, Calibration::read(path)?)?,
+                None => Recording::open(dir)?,
+            };
             println!(
                 "recording {} ({:?} layout): {} frames, {} markers",
                 dir.display(),
