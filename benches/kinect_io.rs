@@ -200,7 +200,11 @@ fn ros_camera(path: &Path) -> CameraModel {
     }
 }
 
-/// A 4x4 little-endian f64 `.npy` matrix (NumPy format 1.0, C order) as a rigid transform.
+/// A 4x4 little-endian f64 `.npy` matrix (NumPy format 1.0, C order) as a rigid transform,
+/// inverted: the file named `depth_to_rgb_transformation.npy` maps colour to depth. Checked
+/// on its frame: with the inverse, the depth edges (jumps over 3 cm) project onto colour
+/// edges (mean Sobel magnitude 36.7 at no shift, best within 8 px) and not with the matrix
+/// as given (26.7, best at the 16 px edge of the search).
 fn npy_transform(path: &Path) -> Extrinsics {
     let bytes = std::fs::read(path).expect("npy readable");
     let header = usize::from(u16::from_le_bytes([bytes[8], bytes[9]]));
@@ -209,10 +213,11 @@ fn npy_transform(path: &Path) -> Extrinsics {
         .chunks_exact(8)
         .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
         .collect();
-    Extrinsics {
+    let as_given = Extrinsics {
         rotation: [[m[0], m[1], m[2]], [m[4], m[5], m[6]], [m[8], m[9], m[10]]],
         translation_m: [m[3], m[7], m[11]],
-    }
+    };
+    Extrinsics::from_isometry(&as_given.to_isometry().expect("a rotation").inverse())
 }
 
 /// Issue 23: the textured cloud of real frames, side by side with Open3D
