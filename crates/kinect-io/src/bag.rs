@@ -34,6 +34,8 @@ use crate::error::{KinectError, Result};
 use crate::pixels::{RawColor, to_rgb};
 use crate::recording::pair_by_time;
 
+/// Most images indexed per topic: 24 hours at 60 fps is 5.2 million (40 bytes each).
+const MAX_IMAGES: usize = 10_000_000;
 /// The first bytes of a ROS 1 bag (format version 2.0).
 const BAG_MAGIC: &[u8] = b"#ROSBAG V2.0\n";
 /// Largest bag header record read to check the index position (the format pads it to 4 KiB).
@@ -580,6 +582,14 @@ fn scan_chunks(
                 } else {
                     &mut scan.color
                 };
+                if list.len() >= MAX_IMAGES {
+                    return Err(KinectError::format(
+                        path,
+                        format!(
+                            "more than {MAX_IMAGES} images on one topic: not read (split the bag)"
+                        ),
+                    ));
+                }
                 list.push((t as f64, (at, t)));
             } else if wanted.contains(&Some(m.conn_id)) {
                 scan.small

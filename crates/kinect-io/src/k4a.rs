@@ -80,6 +80,9 @@ const DEFAULT_TIMESTAMP_SCALE_NS: u64 = 1_000_000;
 const MAX_META_BYTES: u64 = 16 << 20;
 /// Largest colour or depth block read (a 4096x3072 BGRA frame is 50 MB).
 const MAX_FRAME_BYTES: u64 = 64 << 20;
+/// Most video blocks indexed: 24 hours of colour, depth and IR at 30 fps is 7.8 million; the
+/// index holds 40 bytes per block.
+const MAX_BLOCKS: usize = 10_000_000;
 /// A block header: track number (at most 8 bytes), 16-bit timestamp, flags.
 const MAX_BLOCK_HEADER: usize = 11;
 
@@ -509,7 +512,15 @@ fn walk(file: &mut FileReader) -> Result<Walk> {
     let mut at = segment.data_start;
     while let Some(h) = file.header(at, segment_end)? {
         at = match h.id {
-            ID_CLUSTER => walk_cluster(file, &h, segment_end, &mut out.blocks)?,
+            ID_CLUSTER => {
+                let video: Vec<u64> = out
+                    .tracks
+                    .iter()
+                    .filter(|t| t.codec.starts_with("V_"))
+                    .map(|t| t.number)
+                    .collect();
+                walk_cluster(file, &h, segment_end, &mut out.blocks, &video)?
+            }
             ID_ATTACHMENTS => {
                 walk_attachments(file, &h, &mut out.attachments)?;
                 known_end(file, &h, at)?
@@ -560,12 +571,31 @@ fn known_end(file: &FileReader, h: &Header, at: u64) -> Result<u64> {
     })
 }
 
-/// Index the blocks of one cluster; returns where the next segment child starts.
+/// Keep a block if it belongs to a video track (all blocks while the tracks are not known
+/// yet), refusing more than [`MAX_BLOCKS`].
+fn keep(file: &FileReader, blocks: &mut Vec<RawBlock>, b: RawBlock, video: &[u64]) -> Result<()> {
+    if !video.is_empty() && !video.contains(&b.track) {
+        return Ok(());
+    }
+    if blocks.len() >= MAX_BLOCKS {
+        return Err(file.error(
+            b.offset,
+            format!("more than {MAX_BLOCKS} video blocks: not read (split the recording)"),
+        ));
+    }
+    blocks.push(b);
+    Ok(())
+}
+
+/// Index the blocks of one cluster; returns where the next segment child starts. Only blocks
+/// of `video` tracks are kept once the tracks are known (the IMU track's many small blocks
+/// are not).
 fn walk_cluster(
     file: &mut FileReader,
     cluster: &Header,
     segment_end: u64,
     blocks: &mut Vec<RawBlock>,
+    video: &[u64],
 ) -> Result<u64> {
     let end = cluster.end().unwrap_or(segment_end);
     let mut timestamp: Option<u64> = None;
@@ -582,13 +612,17 @@ fn walk_cluster(
                     file.read_vec(h.data_start, next - h.data_start, 8, "a cluster timestamp")?;
                 timestamp = Some(data.iter().fold(0u64, |a, &b| (a << 8) | u64::from(b)));
             }
-            ID_SIMPLE_BLOCK => blocks.push(block(file, &h, next, timestamp)?),
+            ID_SIMPLE_BLOCK => {
+                let found = block(file, &h, next, timestamp)?;
+                keep(file, blocks, found, video)?;
+            }
             ID_BLOCK_GROUP => {
                 let mut inner = h.data_start;
                 while let Some(b) = file.header(inner, next)? {
                     let b_end = known_end(file, &b, inner)?;
                     if b.id == ID_BLOCK {
-                        blocks.push(block(file, &b, b_end, timestamp)?);
+                        let found = block(file, &b, b_end, timestamp)?;
+                        keep(file, blocks, found, video)?;
                     }
                     inner = b_end;
                 }

@@ -62,7 +62,11 @@ fn assert_same_as_native(container: &Recording, native: &Recording) {
         let ca = from_container.build(&fa.depth, &fa.color).unwrap();
         let cb = from_native.build(&fb.depth, &fb.color).unwrap();
         assert_eq!(ca.valid_count(), cb.valid_count());
-        assert!(ca.valid_count() > ca.points().len() / 2, "{}", ca.valid_count());
+        assert!(
+            ca.valid_count() > ca.points().len() / 2,
+            "{}",
+            ca.valid_count()
+        );
         let ((lo_a, hi_a), (lo_b, hi_b)) = (ca.bounding_box().unwrap(), cb.bounding_box().unwrap());
         assert!((lo_a - lo_b).norm() < 1e-3 && (hi_a - hi_b).norm() < 1e-3);
         let coloured = ca
