@@ -32,7 +32,7 @@ use crate::camera::{CameraModel, Distortion};
 use crate::depth::{DEPTH_UNIT_MM_M, DepthImage};
 use crate::error::{KinectError, Result};
 use crate::pixels::{RawColor, to_rgb};
-use crate::recording::pair_by_time;
+use crate::recording::{Container, frame_at, pair_by_time};
 
 /// Most images indexed per topic: 24 hours at 60 fps is 5.2 million (40 bytes each).
 const MAX_IMAGES: usize = 10_000_000;
@@ -54,8 +54,8 @@ struct MsgRef {
 pub(crate) struct BagRecording {
     frames: Vec<(MsgRef, MsgRef)>,
     times_ns: Vec<(u64, u64)>,
-    pub unpaired_depth: usize,
-    pub calibration: Calibration,
+    unpaired_depth: usize,
+    calibration: Calibration,
 }
 
 /// True when the file starts with the ROS bag 2.0 magic line.
@@ -420,27 +420,27 @@ impl BagRecording {
             calibration,
         })
     }
+}
 
-    /// Number of paired frames.
-    pub fn len(&self) -> usize {
-        self.frames.len()
+impl Container for BagRecording {
+    fn calibration(&self) -> &Calibration {
+        &self.calibration
     }
 
-    /// Depth and colour time of frame `i`, seconds.
-    pub fn times_s(&self, i: usize) -> Option<(f64, f64)> {
-        let (d, c) = self.times_ns.get(i)?;
-        Some((*d as f64 * 1e-9, *c as f64 * 1e-9))
+    fn unpaired_depth(&self) -> usize {
+        self.unpaired_depth
+    }
+
+    fn times_s(&self) -> Vec<(f64, f64)> {
+        self.times_ns
+            .iter()
+            .map(|&(d, c)| (d as f64 * 1e-9, c as f64 * 1e-9))
+            .collect()
     }
 
     /// Read and decode frame `i` (depth in `depth_unit_m` units).
-    pub fn read(&self, path: &Path, i: usize, depth_unit_m: f64) -> Result<(RgbImage, DepthImage)> {
-        let Some(&(d, c)) = self.frames.get(i) else {
-            return Err(KinectError::FrameOutOfRange {
-                path: path.to_path_buf(),
-                index: i,
-                count: self.frames.len(),
-            });
-        };
+    fn read(&self, path: &Path, i: usize, depth_unit_m: f64) -> Result<(RgbImage, DepthImage)> {
+        let (d, c) = frame_at(&self.frames, path, i)?;
         let bag = RosBag::new(path).map_err(|e| KinectError::io(path, e))?;
         let label = |what: &str| PathBuf::from(format!("{} ({what} of frame {i})", path.display()));
         let (color_label, depth_label) = (label("colour"), label("depth"));

@@ -171,7 +171,9 @@ impl Default for OcclusionFilter {
 pub struct CloudConfig {
     /// Occlusion filter for the colours; `None` to colour every point from wherever it
     /// projects. Default: libfreenect2's filter. (libfreenect2's own filter is always used
-    /// with the libfreenect2 model when this is `Some`.)
+    /// with the libfreenect2 model when this is `Some`.) Not used for an already-registered
+    /// calibration: the driver that registered the depth resolved occlusion, and every
+    /// point takes its own pixel's colour.
     pub occlusion_filter: Option<OcclusionFilter>,
     /// Depths below this are dropped (metres, default 0: keep everything the sensor reports).
     pub min_depth_m: f64,
@@ -230,7 +232,7 @@ enum Engine {
         rays: Rays,
     },
     /// Rigid: per-pixel undistorted rays and the transform.
-    Rays {
+    Rigid {
         /// The depth camera's undistorted normalised rays.
         rays: Rays,
         /// Depth-to-colour rotation matrix and translation.
@@ -398,7 +400,7 @@ impl CloudBuilder {
             },
             RegistrationModel::Rigid(e) => {
                 let t = e.to_isometry()?;
-                Engine::Rays {
+                Engine::Rigid {
                     rays: Rays::new(&calibration.depth_camera),
                     depth_to_color: (
                         t.rotation.to_rotation_matrix().into_inner(),
@@ -471,7 +473,7 @@ impl CloudBuilder {
                 distortion: crate::camera::Distortion::default(),
                 ..dcam
             },
-            Engine::Rays { .. } | Engine::Registered { .. } => dcam,
+            Engine::Rigid { .. } | Engine::Registered { .. } => dcam,
         };
         cloud.camera_to_cloud = self
             .config
@@ -494,7 +496,7 @@ impl CloudBuilder {
         };
         let valid = match &mut self.engine {
             Engine::Registered { rays } => build_registered(rays, &frame, &mut cloud.points),
-            Engine::Rays {
+            Engine::Rigid {
                 rays,
                 depth_to_color,
             } => {

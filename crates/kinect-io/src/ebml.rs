@@ -259,10 +259,12 @@ pub(crate) fn uint(child: &Child<'_>, path: &Path) -> Result<u64> {
             ),
         ));
     }
-    Ok(child
-        .data
-        .iter()
-        .fold(0u64, |a, &b| (a << 8) | u64::from(b)))
+    Ok(be_uint(child.data))
+}
+
+/// A big-endian unsigned integer of at most 8 bytes.
+pub(crate) fn be_uint(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0u64, |a, &b| (a << 8) | u64::from(b))
 }
 
 /// A string element (ASCII or UTF-8; trailing NULs removed). Invalid UTF-8 is a format error.

@@ -26,7 +26,7 @@ use crate::depth::{DEPTH_UNIT_MM_M, DepthImage, decode_color_image};
 use crate::ebml::{self, Child, FileReader, Header};
 use crate::error::{KinectError, Result};
 use crate::pixels::{RawColor, to_rgb};
-use crate::recording::pair_by_time;
+use crate::recording::{Container, frame_at, pair_by_time};
 
 const ID_EBML: u32 = 0x1A45_DFA3;
 const ID_DOC_TYPE: u32 = 0x4282;
@@ -114,8 +114,8 @@ pub(crate) struct K4aRecording {
     frames: Vec<(BlockRef, BlockRef)>,
     start_offset_ns: i64,
     /// Depth frames with no colour frame within the pairing tolerance.
-    pub unpaired_depth: usize,
-    pub calibration: Calibration,
+    unpaired_depth: usize,
+    calibration: Calibration,
 }
 
 #[derive(Debug, Default)]
@@ -303,29 +303,30 @@ impl K4aRecording {
             calibration,
         })
     }
+}
 
-    /// Number of paired frames.
-    pub fn len(&self) -> usize {
-        self.frames.len()
+impl Container for K4aRecording {
+    fn calibration(&self) -> &Calibration {
+        &self.calibration
     }
 
-    /// Device timestamps (block time + start offset) of depth and colour of frame `i`, s.
-    pub fn times_s(&self, i: usize) -> Option<(f64, f64)> {
-        let (d, c) = self.frames.get(i)?;
+    fn unpaired_depth(&self) -> usize {
+        self.unpaired_depth
+    }
+
+    /// Device timestamps: block time + `K4A_START_OFFSET_NS`.
+    fn times_s(&self) -> Vec<(f64, f64)> {
         let s = |t: i64| (t.saturating_add(self.start_offset_ns)) as f64 * 1e-9;
-        Some((s(d.time_ns), s(c.time_ns)))
+        self.frames
+            .iter()
+            .map(|(d, c)| (s(d.time_ns), s(c.time_ns)))
+            .collect()
     }
 
     /// Read and decode frame `i`: colour as RGB, depth in `depth_unit_m` units (the
     /// recorder's millimetres unless the caller's calibration says otherwise).
-    pub fn read(&self, path: &Path, i: usize, depth_unit_m: f64) -> Result<(RgbImage, DepthImage)> {
-        let Some(&(d, c)) = self.frames.get(i) else {
-            return Err(KinectError::FrameOutOfRange {
-                path: path.to_path_buf(),
-                index: i,
-                count: self.frames.len(),
-            });
-        };
+    fn read(&self, path: &Path, i: usize, depth_unit_m: f64) -> Result<(RgbImage, DepthImage)> {
+        let (d, c) = frame_at(&self.frames, path, i)?;
         let mut file = FileReader::open(path)?;
         let label = |what: &str, b: &BlockRef| -> PathBuf {
             PathBuf::from(format!(
@@ -610,7 +611,7 @@ fn walk_cluster(
             ID_CLUSTER_TIMESTAMP => {
                 let data =
                     file.read_vec(h.data_start, next - h.data_start, 8, "a cluster timestamp")?;
-                timestamp = Some(data.iter().fold(0u64, |a, &b| (a << 8) | u64::from(b)));
+                timestamp = Some(ebml::be_uint(&data));
             }
             ID_SIMPLE_BLOCK => {
                 let found = block(file, &h, next, timestamp)?;

@@ -16,6 +16,7 @@
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use image::RgbImage;
 
@@ -75,15 +76,25 @@ pub struct Frame {
     pub depth: DepthImage,
 }
 
+/// A camera's container file, indexed at open (Azure Kinect `.mkv`, RealSense `.bag`).
+pub(crate) trait Container: std::fmt::Debug + Send + Sync {
+    /// The calibration the file records (or the one the caller gave).
+    fn calibration(&self) -> &Calibration;
+    /// Depth frames left out for want of a colour frame close enough in time.
+    fn unpaired_depth(&self) -> usize;
+    /// Depth and colour time of every paired frame, seconds.
+    fn times_s(&self) -> Vec<(f64, f64)>;
+    /// Read and decode frame `index` (in range), depth in `depth_unit_m` units.
+    fn read(&self, path: &Path, index: usize, depth_unit_m: f64) -> Result<(RgbImage, DepthImage)>;
+}
+
 /// Where a recording's frames come from.
 #[derive(Debug, Clone)]
 enum Source {
     /// One image file per frame and camera (native, TUM).
     Files(Vec<FrameEntry>),
-    /// Blocks of a Matroska file.
-    AzureKinect(Box<K4aRecording>),
-    /// Messages of a ROS bag.
-    RealSense(Box<BagRecording>),
+    /// A camera's container file.
+    Container(Arc<dyn Container>),
 }
 
 /// A recording, opened: the calibration and the frame list are read; images are loaded only
@@ -167,33 +178,27 @@ impl Recording {
     }
 
     fn open_file(path: &Path, calibration: Option<Calibration>) -> Result<Self> {
-        if is_matroska(path) {
+        let (layout, container): (_, Arc<dyn Container>) = if is_matroska(path) {
             let k4a = K4aRecording::open(path, calibration)?;
-            return Ok(Self {
-                path: path.to_path_buf(),
-                layout: Layout::AzureKinect,
-                calibration: k4a.calibration.clone(),
-                times_s: (0..k4a.len()).filter_map(|i| k4a.times_s(i)).collect(),
-                unpaired: k4a.unpaired_depth,
-                source: Source::AzureKinect(Box::new(k4a)),
-            });
-        }
-        if is_rosbag(path) {
+            (Layout::AzureKinect, Arc::new(k4a))
+        } else if is_rosbag(path) {
             let bag = BagRecording::open(path, calibration)?;
-            return Ok(Self {
+            (Layout::RealSense, Arc::new(bag))
+        } else {
+            return Err(KinectError::UnknownLayout {
                 path: path.to_path_buf(),
-                layout: Layout::RealSense,
-                calibration: bag.calibration.clone(),
-                times_s: (0..bag.len()).filter_map(|i| bag.times_s(i)).collect(),
-                unpaired: bag.unpaired_depth,
-                source: Source::RealSense(Box::new(bag)),
+                what: "a file that is neither a Matroska (.mkv) recording nor a ROS bag \
+                       (.bag); a folder recording is opened by its folder"
+                    .into(),
             });
-        }
-        Err(KinectError::UnknownLayout {
+        };
+        Ok(Self {
             path: path.to_path_buf(),
-            what: "a file that is neither a Matroska (.mkv) recording nor a ROS bag (.bag); \
-                   a folder recording is opened by its folder"
-                .into(),
+            layout,
+            calibration: container.calibration().clone(),
+            times_s: container.times_s(),
+            unpaired: container.unpaired_depth(),
+            source: Source::Container(container),
         })
     }
 
@@ -243,7 +248,7 @@ impl Recording {
     pub fn entries(&self) -> Option<&[FrameEntry]> {
         match &self.source {
             Source::Files(entries) => Some(entries),
-            Source::AzureKinect(_) | Source::RealSense(_) => None,
+            Source::Container(_) => None,
         }
     }
 
@@ -262,10 +267,6 @@ impl Recording {
         };
         // A calibration given by the caller sets the unit a container's raw depth is in.
         let unit_m = self.calibration.depth_unit_m;
-        let container_names = || {
-            let name = format!("{} frame {index}", self.path.display());
-            (format!("{name} colour"), format!("{name} depth"))
-        };
         let (color, depth, (color_name, depth_name)) = match &self.source {
             Source::Files(entries) => {
                 let entry = &entries[index.min(entries.len().saturating_sub(1))];
@@ -277,13 +278,14 @@ impl Recording {
                 );
                 (color, depth, names)
             }
-            Source::AzureKinect(k4a) => {
-                let (color, depth) = k4a.read(&self.path, index, unit_m)?;
-                (color, depth, container_names())
-            }
-            Source::RealSense(bag) => {
-                let (color, depth) = bag.read(&self.path, index, unit_m)?;
-                (color, depth, container_names())
+            Source::Container(container) => {
+                let (color, depth) = container.read(&self.path, index, unit_m)?;
+                let name = format!("{} frame {index}", self.path.display());
+                (
+                    color,
+                    depth,
+                    (format!("{name} colour"), format!("{name} depth")),
+                )
             }
         };
         let against = |name: &str| format!("{name} vs. the calibration");
@@ -468,6 +470,18 @@ pub fn associate<T, U>(
     }
     pairs.sort_unstable();
     pairs
+}
+
+/// Item `index` of a container's frame list, or the out-of-range error naming the file.
+pub(crate) fn frame_at<T: Copy>(frames: &[T], path: &Path, index: usize) -> Result<T> {
+    frames
+        .get(index)
+        .copied()
+        .ok_or_else(|| KinectError::FrameOutOfRange {
+            path: path.to_path_buf(),
+            index,
+            count: frames.len(),
+        })
 }
 
 /// Default pairing tolerance of a camera container with a single depth frame: half a 30 fps

@@ -230,77 +230,63 @@ fn damaged_realsense_bags_say_what_is_wrong() {
     assert!(err.contains("Dxpth_0") && err.contains("cut.bag"), "{err}");
 }
 
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
-
-    #[test]
-    fn damaged_azure_kinect_recordings_give_errors_not_panics(
-        cut in prop::option::weighted(0.3, any::<usize>()),
-        head_flips in prop::collection::vec((0usize..12_000, any::<u8>()), 0..6),
-        flips in prop::collection::vec((any::<usize>(), any::<u8>()), 0..3),
-    ) {
-        let mut bytes = std::fs::read(fixture("k4a_mjpg.mkv")).expect("read");
-        // Most of the file is frame data: aim most flips at the headers, tracks, tags and
-        // attachment at the front.
-        for &(at, value) in &head_flips {
-            let n = bytes.len();
-            bytes[at % n] = value;
-        }
-        // Most cases keep the whole file, so that damaged frames and indexes are read too.
-        let keep = cut.unwrap_or(bytes.len());
-        let bytes = damage(bytes, keep, &flips);
-        let dir = temp_dir("k4a-fuzz");
-        let path = dir.join("damaged.mkv");
-        std::fs::write(&path, &bytes).expect("write");
-        match Recording::open(&path) {
-            Ok(recording) => {
-                for frame in recording.frames() {
-                    must_not_panic(frame);
-                }
-            }
-            Err(e) => {
-                let text = e.to_string();
-                prop_assert!(text.contains("damaged.mkv"), "{}", text);
-            }
+/// Damage a fixture (flips at `ends`: offsets from the front, and from the back when
+/// negative; then random flips and an optional cut), write it as `damaged.EXT` and open it:
+/// either it opens and every frame reads or fails without a panic, or the error names the
+/// file.
+fn open_damaged(
+    name: &str,
+    ends: &[(i64, u8)],
+    flips: &[(usize, u8)],
+    cut: Option<usize>,
+) -> Result<(), TestCaseError> {
+    let mut bytes = std::fs::read(fixture(name)).expect("read");
+    let n = bytes.len();
+    for &(at, value) in ends {
+        let at = usize::try_from(at)
+            .map_or_else(|_| n - 1 - (at.unsigned_abs() as usize) % n, |a| a % n);
+        bytes[at] = value;
+    }
+    // Most cases keep the whole file, so that damaged frames and indexes are read too.
+    let bytes = damage(bytes, cut.unwrap_or(n), flips);
+    let ext = Path::new(name)
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("bin");
+    let dir = temp_dir("container-fuzz");
+    let path = dir.join(format!("damaged.{ext}"));
+    std::fs::write(&path, &bytes).expect("write");
+    match Recording::open(&path) {
+        Ok(recording) => recording.frames().for_each(must_not_panic),
+        Err(e) => {
+            let text = e.to_string();
+            prop_assert!(text.contains("damaged."), "{}", text);
         }
     }
+    Ok(())
 }
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
     #[test]
-    fn damaged_realsense_bags_give_errors_not_panics(
+    fn damaged_azure_kinect_recordings_give_errors_not_panics(
         cut in prop::option::weighted(0.3, any::<usize>()),
-        head_flips in prop::collection::vec((0usize..8_000, any::<u8>()), 0..6),
-        tail_flips in prop::collection::vec((0usize..6_000, any::<u8>()), 0..6),
+        head_flips in prop::collection::vec((0i64..12_000, any::<u8>()), 0..6),
         flips in prop::collection::vec((any::<usize>(), any::<u8>()), 0..3),
     ) {
-        let mut bytes = std::fs::read(fixture("realsense.bag")).expect("read");
+        // Most of the file is frame data: aim most flips at the headers, tracks, tags and
+        // attachment at the front.
+        open_damaged("k4a_mjpg.mkv", &head_flips, &flips, cut)?;
+    }
+
+    #[test]
+    fn damaged_realsense_bags_give_errors_not_panics(
+        cut in prop::option::weighted(0.3, any::<usize>()),
+        ends in prop::collection::vec((-6_000i64..8_000, any::<u8>()), 0..12),
+        flips in prop::collection::vec((any::<usize>(), any::<u8>()), 0..3),
+    ) {
         // Headers and connection records sit at the front, the index at the back.
-        let n = bytes.len();
-        for &(at, value) in &head_flips {
-            bytes[at % n] = value;
-        }
-        for &(at, value) in &tail_flips {
-            bytes[n - 1 - at % n] = value;
-        }
-        // Most cases keep the whole file, so that damaged frames and indexes are read too.
-        let keep = cut.unwrap_or(bytes.len());
-        let bytes = damage(bytes, keep, &flips);
-        let dir = temp_dir("bag-fuzz");
-        let path = dir.join("damaged.bag");
-        std::fs::write(&path, &bytes).expect("write");
-        match Recording::open(&path) {
-            Ok(recording) => {
-                for frame in recording.frames() {
-                    must_not_panic(frame);
-                }
-            }
-            Err(e) => {
-                let text = e.to_string();
-                prop_assert!(text.contains("damaged.bag"), "{}", text);
-            }
-        }
+        open_damaged("realsense.bag", &ends, &flips, cut)?;
     }
 }
