@@ -1,8 +1,17 @@
-//! Organized textured point clouds: one point per depth pixel, with its colour.
+//! Organized textured point clouds: one entry per depth pixel, with its colour.
 //!
 //! Depth is converted from raw sensor units to metres here, at this boundary, and nowhere
-//! else. A pixel without valid depth is `None`; a point that the colour camera does not see
-//! (outside its image, or occluded by a nearer surface) has `rgb: None`.
+//! else. A pixel without valid depth has no point; a point that the colour camera does not
+//! see (outside its image, or occluded by a nearer surface) has `rgb: None`.
+//!
+//! The layout is packed: per pixel the point's depth along the source camera's axis (8 bytes)
+//! and its colour with a "seen" flag (4 bytes). Every point of an organized cloud lies on its
+//! pixel's ray, so its position is that ray (shared by every cloud of one camera) times its
+//! depth, moved by the cloud's transform; positions are computed when they are asked for.
+//! That is 12 bytes written per pixel where a `Vec<Option<TexturedPoint>>` wrote 32, and a
+//! transform of the whole cloud costs nothing until the points are read.
+
+use std::sync::Arc;
 
 use image::RgbImage;
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
@@ -27,48 +36,125 @@ pub struct TexturedPoint {
     pub rgb: Option<[u8; 3]>,
 }
 
-/// An organized textured point cloud: `width * height` entries, row-major, one per depth pixel.
-#[derive(Debug, Clone, PartialEq)]
+/// The colour entry of a pixel the colour camera does not see (or that has no point).
+const NO_COLOR: [u8; 4] = [0; 4];
+
+/// The fourth byte of a colour entry the colour camera sees.
+const SEEN: u8 = 255;
+
+/// An organized textured point cloud: `width * height` entries, row-major, one per depth
+/// pixel of its source camera, packed (see the module docs).
+#[derive(Debug, Clone)]
 pub struct TexturedCloud {
     width: u32,
     height: u32,
-    points: Vec<Option<TexturedPoint>>,
+    /// Depth along the source camera's axis per pixel, metres; 0 where there is no point.
+    depth_m: Vec<f64>,
+    /// Colour per pixel, the fourth byte [`SEEN`] when the colour camera sees the point.
+    rgb: Vec<[u8; 4]>,
+    /// The source camera's rays, shared with the builder that made the cloud.
+    rays: Arc<Rays>,
     source_camera: CameraModel,
     camera_to_cloud: Isometry3<f64>,
+    /// `camera_to_cloud` as a matrix and translation; `None` for the identity.
+    to_cloud: Option<(Matrix3<f64>, Vector3<f64>)>,
+}
+
+impl PartialEq for TexturedCloud {
+    /// Equal when they have the same size, camera and transform, and every pixel has the
+    /// same point (position and colour).
+    fn eq(&self, other: &Self) -> bool {
+        (self.width, self.height) == (other.width, other.height)
+            && self.source_camera == other.source_camera
+            && self.camera_to_cloud == other.camera_to_cloud
+            && (0..self.depth_m.len()).all(|i| self.point(i) == other.point(i))
+    }
 }
 
 impl TexturedCloud {
-    /// An organized cloud from its points (`width * height`, row-major), the camera whose
-    /// pixels they are, and the transform from that camera's frame to the cloud's frame
-    /// (identity when the points are in the camera frame).
+    /// An organized cloud of `source_camera`'s pixels (row-major) from each pixel's depth
+    /// along the camera's axis (metres, 0 where there is no point) and colour (`None` where
+    /// the colour camera does not see it), with the transform from the camera's frame to the
+    /// cloud's frame (identity when the points are in the camera frame). Each point lies on
+    /// its pixel's ray; a pixel whose ray the camera's distortion cannot give has no point.
     ///
     /// # Errors
-    /// [`KinectError::SizeMismatch`] when the point count or camera size does not match.
+    /// [`KinectError::SizeMismatch`] when the counts do not match the camera;
+    /// [`KinectError::InvalidParameter`] for an invalid camera or a depth that is negative or
+    /// not finite.
     pub fn new(
-        width: u32,
-        height: u32,
-        points: Vec<Option<TexturedPoint>>,
         source_camera: CameraModel,
+        depth_m: Vec<f64>,
+        rgb: &[Option<[u8; 3]>],
         camera_to_cloud: Isometry3<f64>,
     ) -> Result<Self> {
-        if points.len() != width as usize * height as usize
-            || (source_camera.width, source_camera.height) != (width, height)
-        {
-            return Err(KinectError::SizeMismatch {
-                what: "organized cloud points vs. source camera".into(),
-                expected_width: source_camera.width,
-                expected_height: source_camera.height,
-                found_width: width,
-                found_height: (points.len() / width.max(1) as usize) as u32,
-            });
+        source_camera.validate()?;
+        let n = source_camera.pixel_count();
+        for (what, len) in [("depths", depth_m.len()), ("colours", rgb.len())] {
+            if len != n {
+                return Err(KinectError::SizeMismatch {
+                    what: format!("organized cloud {what} vs. source camera"),
+                    expected_width: source_camera.width,
+                    expected_height: source_camera.height,
+                    found_width: source_camera.width,
+                    found_height: (len / source_camera.width.max(1) as usize) as u32,
+                });
+            }
         }
-        Ok(Self {
-            width,
-            height,
-            points,
-            source_camera,
-            camera_to_cloud,
-        })
+        if let Some((i, z)) = depth_m
+            .iter()
+            .enumerate()
+            .find(|(_, z)| !(z.is_finite() && **z >= 0.0))
+        {
+            return Err(KinectError::param(
+                "organized cloud depth",
+                format!("{z} m at pixel {i} must be finite and non-negative (0: no point)"),
+            ));
+        }
+        let rays = Arc::new(Rays::new(&source_camera));
+        let mut depth_m = depth_m;
+        for (i, z) in depth_m.iter_mut().enumerate() {
+            if rays.is_void(i) {
+                *z = 0.0;
+            }
+        }
+        let rgb = rgb
+            .iter()
+            .zip(&depth_m)
+            .map(|(c, &z)| match c {
+                Some([r, g, b]) if z > 0.0 => [*r, *g, *b, SEEN],
+                _ => NO_COLOR,
+            })
+            .collect();
+        let mut cloud = Self::empty(source_camera, rays);
+        cloud.depth_m = depth_m;
+        cloud.rgb = rgb;
+        cloud.set_camera_to_cloud(camera_to_cloud);
+        Ok(cloud)
+    }
+
+    /// A cloud of `camera` with no storage yet.
+    fn empty(camera: CameraModel, rays: Arc<Rays>) -> Self {
+        Self {
+            width: camera.width,
+            height: camera.height,
+            depth_m: Vec::new(),
+            rgb: Vec::new(),
+            rays,
+            source_camera: camera,
+            camera_to_cloud: Isometry3::identity(),
+            to_cloud: None,
+        }
+    }
+
+    fn set_camera_to_cloud(&mut self, transform: Isometry3<f64>) {
+        self.camera_to_cloud = transform;
+        self.to_cloud = (transform != Isometry3::identity()).then(|| {
+            (
+                transform.rotation.to_rotation_matrix().into_inner(),
+                transform.translation.vector,
+            )
+        });
     }
 
     /// Width (depth pixels).
@@ -81,15 +167,76 @@ impl TexturedCloud {
         self.height
     }
 
-    /// All entries, row-major.
-    pub fn points(&self) -> &[Option<TexturedPoint>] {
-        &self.points
+    /// Number of entries (`width * height`, valid or not).
+    pub fn len(&self) -> usize {
+        self.depth_m.len()
     }
 
-    /// The entry of depth pixel `(u, v)`; `None` outside the grid or where there is no depth.
-    pub fn get(&self, u: u32, v: u32) -> Option<&TexturedPoint> {
+    /// True when the cloud has no entries.
+    pub fn is_empty(&self) -> bool {
+        self.depth_m.is_empty()
+    }
+
+    /// Depth of every entry along the source camera's axis (its `z`), row-major, metres; 0
+    /// where there is no point. The packed form, for code that wants to stream the cloud.
+    pub fn depths_m(&self) -> &[f64] {
+        &self.depth_m
+    }
+
+    /// The point of entry `index` (row-major); `None` outside the grid or where there is no
+    /// depth.
+    #[inline]
+    pub fn point(&self, index: usize) -> Option<TexturedPoint> {
+        let z = *self.depth_m.get(index)?;
+        (z > 0.0).then(|| TexturedPoint {
+            position_m: self.position(index, z),
+            rgb: self.color_of(index),
+        })
+    }
+
+    /// The position of entry `index` (row-major), metres in the cloud's frame; `None`
+    /// outside the grid or where there is no depth.
+    #[inline]
+    pub fn position_m(&self, index: usize) -> Option<Point3<f64>> {
+        let z = *self.depth_m.get(index)?;
+        (z > 0.0).then(|| self.position(index, z))
+    }
+
+    /// The colour of entry `index`; `None` where there is no point or the colour camera does
+    /// not see it.
+    #[inline]
+    pub fn color(&self, index: usize) -> Option<[u8; 3]> {
+        (*self.depth_m.get(index)? > 0.0)
+            .then(|| self.color_of(index))
+            .flatten()
+    }
+
+    #[inline]
+    fn color_of(&self, index: usize) -> Option<[u8; 3]> {
+        let [r, g, b, seen] = self.rgb[index];
+        (seen == SEEN).then_some([r, g, b])
+    }
+
+    /// The position of entry `index` with depth `z > 0`.
+    #[inline]
+    fn position(&self, index: usize, z: f64) -> Point3<f64> {
+        self.place(self.rays.at(index, self.width as usize), z)
+    }
+
+    /// The point at depth `z` on ray `(x, y)`, in the cloud's frame.
+    #[inline]
+    fn place(&self, (x, y): (f64, f64), z: f64) -> Point3<f64> {
+        let p = Vector3::new(x * z, y * z, z);
+        match &self.to_cloud {
+            None => Point3::from(p),
+            Some((r, t)) => Point3::from(r * p + t),
+        }
+    }
+
+    /// The point of depth pixel `(u, v)`; `None` outside the grid or where there is no depth.
+    pub fn get(&self, u: u32, v: u32) -> Option<TexturedPoint> {
         if u < self.width && v < self.height {
-            self.points[v as usize * self.width as usize + u as usize].as_ref()
+            self.point(v as usize * self.width as usize + u as usize)
         } else {
             None
         }
@@ -107,15 +254,28 @@ impl TexturedCloud {
 
     /// Number of points with depth.
     pub fn valid_count(&self) -> usize {
-        self.points.iter().filter(|p| p.is_some()).count()
+        self.depth_m.iter().filter(|&&z| z > 0.0).count()
     }
 
     /// The points with depth, with their flat index.
-    pub fn iter_valid(&self) -> impl Iterator<Item = (usize, &TexturedPoint)> {
-        self.points
-            .iter()
+    pub fn iter_valid(&self) -> impl Iterator<Item = (usize, TexturedPoint)> + '_ {
+        let w = (self.width as usize).max(1);
+        self.depth_m
+            .chunks_exact(w)
             .enumerate()
-            .filter_map(|(i, p)| p.as_ref().map(|p| (i, p)))
+            .flat_map(move |(v, row)| {
+                row.iter()
+                    .enumerate()
+                    .filter(|(_, z)| **z > 0.0)
+                    .map(move |(u, &z)| {
+                        let i = v * w + u;
+                        let point = TexturedPoint {
+                            position_m: self.place(self.rays.at_uv(u, v, i), z),
+                            rgb: self.color_of(i),
+                        };
+                        (i, point)
+                    })
+            })
     }
 
     /// Axis-aligned bounding box `(min, max)` of the valid points; `None` when there are none.
@@ -131,14 +291,24 @@ impl TexturedCloud {
     }
 
     /// The same cloud with every point moved by `transform` (for example
-    /// [`crate::camera_to_world_z_up`] to go to a Z-up world frame).
+    /// [`crate::camera_to_world_z_up`] to go to a Z-up world frame). The points are not
+    /// touched: the transform is composed with the cloud's.
     pub fn transformed(&self, transform: &Isometry3<f64>) -> Self {
         let mut out = self.clone();
-        for p in out.points.iter_mut().flatten() {
-            p.position_m = transform * p.position_m;
-        }
-        out.camera_to_cloud = transform * self.camera_to_cloud;
+        out.set_camera_to_cloud(transform * self.camera_to_cloud);
         out
+    }
+
+    /// Make the storage fit `camera`'s pixels with `rays`, and set the transform.
+    fn reset(&mut self, camera: CameraModel, rays: &Arc<Rays>, transform: Isometry3<f64>) {
+        let n = camera.pixel_count();
+        (self.width, self.height, self.source_camera) = (camera.width, camera.height, camera);
+        self.depth_m.resize(n, 0.0);
+        self.rgb.resize(n, NO_COLOR);
+        if !Arc::ptr_eq(&self.rays, rays) {
+            self.rays = Arc::clone(rays);
+        }
+        self.set_camera_to_cloud(transform);
     }
 }
 
@@ -229,16 +399,18 @@ enum Engine {
     Registered {
         /// Undistorted normalised ray per depth pixel, as separable factors when the camera
         /// has no distortion (x per column, y per row) or a full table.
-        rays: Rays,
+        rays: Arc<Rays>,
     },
     /// Rigid: per-pixel undistorted rays and the transform.
     Rigid {
         /// The depth camera's undistorted normalised rays.
-        rays: Rays,
+        rays: Arc<Rays>,
         /// Depth-to-colour rotation matrix and translation.
         depth_to_color: (Matrix3<f64>, Vector3<f64>),
     },
     Freenect2 {
+        /// The rays of libfreenect2's undistorted (pinhole) depth grid.
+        rays: Arc<Rays>,
         registration: Box<Freenect2Registration>,
         frame: Freenect2Frame,
         depth_mm: Vec<f32>,
@@ -246,7 +418,8 @@ enum Engine {
 }
 
 /// A depth camera's undistorted normalised rays.
-enum Rays {
+#[derive(Debug, PartialEq)]
+pub(crate) enum Rays {
     /// No distortion: `x = columns[u]`, `y = rows[v]`.
     Separable { columns: Vec<f64>, rows: Vec<f64> },
     /// One ray per pixel, x and y apart (NaN where the distortion cannot be inverted).
@@ -272,6 +445,29 @@ impl Rays {
         }
     }
 
+    /// True when pixel `index` has no ray (the distortion cannot be inverted there).
+    fn is_void(&self, index: usize) -> bool {
+        match self {
+            Self::Separable { .. } => false,
+            Self::Table { xs, .. } => xs.get(index).is_none_or(|x| x.is_nan()),
+        }
+    }
+
+    /// The ray `(x, y)` of pixel `index` of a camera `width` pixels wide.
+    #[inline]
+    fn at(&self, index: usize, width: usize) -> (f64, f64) {
+        self.at_uv(index % width, index / width, index)
+    }
+
+    /// The ray `(x, y)` of pixel `(u, v)`, whose flat index is `index`.
+    #[inline]
+    fn at_uv(&self, u: usize, v: usize, index: usize) -> (f64, f64) {
+        match self {
+            Self::Separable { columns, rows } => (columns[u], rows[v]),
+            Self::Table { xs, ys } => (xs[index], ys[index]),
+        }
+    }
+
     /// The rays of row `v` (`width` pixels), x and y; `y_fill` holds the row's y when the
     /// rays are separable.
     #[inline]
@@ -294,43 +490,22 @@ impl Rays {
         }
     }
 
-    /// Call `f(index, raw depth, ray, slot)` for every pixel, row-major (`depth` and
-    /// `points` have the camera's pixel count).
+    /// Call `f(raw depth, ray x, depth slot)` for every pixel, row-major (`depth` and
+    /// `depth_m` have the camera's pixel count).
     #[inline]
-    fn for_each(
-        &self,
-        depth: &[u16],
-        points: &mut [Option<TexturedPoint>],
-        mut f: impl FnMut(usize, u16, [f64; 2], &mut Option<TexturedPoint>),
-    ) {
+    fn for_each(&self, depth: &[u16], depth_m: &mut [f64], mut f: impl FnMut(u16, f64, &mut f64)) {
         match self {
-            Self::Separable { columns, rows } => {
+            Self::Separable { columns, .. } => {
                 let w = columns.len();
-                for (v, ((&y, depth_row), point_row)) in rows
-                    .iter()
-                    .zip(depth.chunks_exact(w))
-                    .zip(points.chunks_exact_mut(w))
-                    .enumerate()
-                {
-                    for (u, ((&x, &raw), slot)) in columns
-                        .iter()
-                        .zip(depth_row)
-                        .zip(point_row.iter_mut())
-                        .enumerate()
-                    {
-                        f(v * w + u, raw, [x, y], slot);
+                for (depth_row, out_row) in depth.chunks_exact(w).zip(depth_m.chunks_exact_mut(w)) {
+                    for ((&x, &raw), out) in columns.iter().zip(depth_row).zip(out_row) {
+                        f(raw, x, out);
                     }
                 }
             }
-            Self::Table { xs, ys } => {
-                for (i, (((&x, &y), &raw), slot)) in xs
-                    .iter()
-                    .zip(ys)
-                    .zip(depth)
-                    .zip(points.iter_mut())
-                    .enumerate()
-                {
-                    f(i, raw, [x, y], slot);
+            Self::Table { xs, .. } => {
+                for ((&x, &raw), out) in xs.iter().zip(depth).zip(depth_m) {
+                    f(raw, x, out);
                 }
             }
         }
@@ -387,6 +562,7 @@ impl CloudBuilder {
                 let registration = Freenect2Registration::new(*ir, *color)?;
                 let n = calibration.depth_camera.pixel_count();
                 Engine::Freenect2 {
+                    rays: Arc::new(Rays::new(&freenect2_grid(&calibration.depth_camera))),
                     registration: Box::new(registration),
                     frame: Freenect2Frame {
                         undistorted_mm: vec![0.0; n],
@@ -396,12 +572,12 @@ impl CloudBuilder {
                 }
             }
             RegistrationModel::AlreadyRegistered => Engine::Registered {
-                rays: Rays::new(&calibration.depth_camera),
+                rays: Arc::new(Rays::new(&calibration.depth_camera)),
             },
             RegistrationModel::Rigid(e) => {
                 let t = e.to_isometry()?;
                 Engine::Rigid {
-                    rays: Rays::new(&calibration.depth_camera),
+                    rays: Arc::new(Rays::new(&calibration.depth_camera)),
                     depth_to_color: (
                         t.rotation.to_rotation_matrix().into_inner(),
                         t.translation.vector,
@@ -420,6 +596,14 @@ impl CloudBuilder {
         })
     }
 
+    fn rays(&self) -> &Arc<Rays> {
+        match &self.engine {
+            Engine::Registered { rays }
+            | Engine::Rigid { rays, .. }
+            | Engine::Freenect2 { rays, .. } => rays,
+        }
+    }
+
     /// The calibration this builder uses.
     pub fn calibration(&self) -> &Calibration {
         &self.calibration
@@ -431,14 +615,8 @@ impl CloudBuilder {
     /// [`KinectError::SizeMismatch`] when the depth or colour image does not have its camera's
     /// size; [`KinectError::NoValidDepth`] when no pixel has a valid depth.
     pub fn build(&mut self, depth: &DepthImage, color: &RgbImage) -> Result<TexturedCloud> {
-        let camera = self.calibration.depth_camera;
-        let mut cloud = TexturedCloud {
-            width: camera.width,
-            height: camera.height,
-            points: vec![None; camera.pixel_count()],
-            source_camera: camera,
-            camera_to_cloud: Isometry3::identity(),
-        };
+        let mut cloud =
+            TexturedCloud::empty(self.calibration.depth_camera, Arc::clone(self.rays()));
         self.build_into(depth, color, &mut cloud)?;
         Ok(cloud)
     }
@@ -465,24 +643,19 @@ impl CloudBuilder {
             color.width(),
             color.height(),
         )?;
-        cloud.width = dcam.width;
-        cloud.height = dcam.height;
-        cloud.source_camera = match self.engine {
-            // libfreenect2's points lie on its undistorted grid: a pinhole image.
-            Engine::Freenect2 { .. } => CameraModel {
-                distortion: crate::camera::Distortion::default(),
-                ..dcam
-            },
+        let source = match self.engine {
+            Engine::Freenect2 { .. } => freenect2_grid(&dcam),
             Engine::Rigid { .. } | Engine::Registered { .. } => dcam,
         };
-        cloud.camera_to_cloud = self
+        let transform = self
             .config
             .camera_to_world
             .unwrap_or_else(Isometry3::identity);
-        if cloud.points.len() != dcam.pixel_count() {
-            cloud.points.clear();
-            cloud.points.resize(dcam.pixel_count(), None);
-        }
+        cloud.reset(source, self.rays(), transform);
+        let out = Slots {
+            depth_m: &mut cloud.depth_m,
+            rgb: &mut cloud.rgb,
+        };
         let range = DepthRange {
             unit_m: depth.unit_m(),
             offset_m: self.calibration.depth_offset_m,
@@ -495,7 +668,7 @@ impl CloudBuilder {
             range,
         };
         let valid = match &mut self.engine {
-            Engine::Registered { rays } => build_registered(rays, &frame, &mut cloud.points),
+            Engine::Registered { rays } => build_registered(rays, &frame, out),
             Engine::Rigid {
                 rays,
                 depth_to_color,
@@ -506,12 +679,13 @@ impl CloudBuilder {
                     camera: &ccam,
                     filter: self.config.occlusion_filter,
                 };
-                rigid.build(&frame, &mut self.occlusion, &mut cloud.points)
+                rigid.build(&frame, &mut self.occlusion, out)
             }
             Engine::Freenect2 {
                 registration,
                 frame: registered,
                 depth_mm,
+                ..
             } => {
                 let scale_mm = (range.unit_m * 1000.0) as f32;
                 for (out, &raw) in depth_mm.iter_mut().zip(depth.values()) {
@@ -523,18 +697,13 @@ impl CloudBuilder {
                     self.config.occlusion_filter.is_some(),
                     registered,
                 )?;
-                freenect2_points(&dcam, registered, range, &mut cloud.points)
+                freenect2_points(registered, range, out)
             }
         };
         if valid == 0 {
             return Err(KinectError::NoValidDepth {
                 what: format!("depth frame {}x{} px", depth.width(), depth.height()),
             });
-        }
-        if let Some(t) = &self.config.camera_to_world {
-            for p in cloud.points.iter_mut().flatten() {
-                p.position_m = t * p.position_m;
-            }
         }
         Ok(())
     }
@@ -553,8 +722,19 @@ impl DepthRange {
     /// The depth in metres of a raw value, when it is a measurement inside the range.
     #[inline]
     fn metres(&self, raw: u16) -> Option<f64> {
+        let z = self.metres_or_zero(raw);
+        (z > 0.0).then_some(z)
+    }
+
+    /// [`DepthRange::metres`], 0 for no measurement (`min_z >= 0`, so a kept depth is > 0).
+    #[inline]
+    fn metres_or_zero(&self, raw: u16) -> f64 {
         let z = f64::from(raw) * self.unit_m + self.offset_m;
-        (raw != 0 && z > self.min_z && z <= self.max_z).then_some(z)
+        if raw != 0 && z > self.min_z && z <= self.max_z {
+            z
+        } else {
+            0.0
+        }
     }
 }
 
@@ -565,35 +745,54 @@ struct Inputs<'a> {
     range: DepthRange,
 }
 
-/// The colour of pixel `(u, v)` of a packed RGB buffer `width` pixels wide.
+/// The colour entry (seen) of pixel `(u, v)` of a packed RGB buffer `width` pixels wide.
 #[inline]
-fn rgb_at(raw: &[u8], width: usize, u: usize, v: usize) -> [u8; 3] {
+fn rgb_at(raw: &[u8], width: usize, u: usize, v: usize) -> [u8; 4] {
     let at = 3 * (v * width + u);
-    [raw[at], raw[at + 1], raw[at + 2]]
+    [raw[at], raw[at + 1], raw[at + 2], SEEN]
+}
+
+/// The packed storage a builder writes: depth and colour entry per pixel.
+struct Slots<'a> {
+    depth_m: &'a mut [f64],
+    rgb: &'a mut [[u8; 4]],
+}
+
+/// libfreenect2's undistorted depth grid: the depth camera without distortion, on which its
+/// points lie.
+fn freenect2_grid(dcam: &CameraModel) -> CameraModel {
+    CameraModel {
+        distortion: crate::camera::Distortion::default(),
+        ..*dcam
+    }
 }
 
 /// Already registered: every point takes its own pixel's colour. Returns the valid count.
-fn build_registered(
-    rays: &Rays,
-    frame: &Inputs<'_>,
-    points: &mut [Option<TexturedPoint>],
-) -> usize {
+fn build_registered(rays: &Rays, frame: &Inputs<'_>, out: Slots<'_>) -> usize {
     // The camera's driver registered depth to colour (and so resolved occlusion): every
     // point takes its own pixel's colour, as TUM's tools and Open3D do.
-    let rgb = frame.color.as_raw();
     let mut valid = 0;
-    rays.for_each(frame.depth.values(), points, |i, raw, [rx, ry], slot| {
-        *slot = match frame.range.metres(raw) {
+    rays.for_each(frame.depth.values(), out.depth_m, |raw, rx, z_out| {
+        *z_out = match frame.range.metres(raw) {
             Some(z) if !rx.is_nan() => {
                 valid += 1;
-                Some(TexturedPoint {
-                    position_m: Point3::new(rx * z, ry * z, z),
-                    rgb: Some([rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]]),
-                })
+                z
             }
-            _ => None,
+            _ => 0.0,
         };
     });
+    for ((entry, rgb), &z) in out
+        .rgb
+        .iter_mut()
+        .zip(frame.color.as_raw().chunks_exact(3))
+        .zip(out.depth_m.iter())
+    {
+        *entry = if z > 0.0 {
+            [rgb[0], rgb[1], rgb[2], SEEN]
+        } else {
+            NO_COLOR
+        };
+    }
     valid
 }
 
@@ -607,12 +806,7 @@ struct Rigid<'a> {
 
 impl Rigid<'_> {
     /// Points, and their colours where the colour camera sees them. Returns the valid count.
-    fn build(
-        &self,
-        frame: &Inputs<'_>,
-        occlusion: &mut Occlusion,
-        points: &mut [Option<TexturedPoint>],
-    ) -> usize {
+    fn build(&self, frame: &Inputs<'_>, occlusion: &mut Occlusion, out: Slots<'_>) -> usize {
         let ccam = self.camera;
         let (cw, ch) = (ccam.width as usize, ccam.height as usize);
         if self.filter.is_some() {
@@ -624,29 +818,31 @@ impl Rigid<'_> {
         let w = frame.depth.width() as usize;
         let rows = &mut occlusion.rows;
         let mut valid = 0;
-        for (v, (depth_row, point_row)) in frame
+        out.rgb.fill(NO_COLOR);
+        for (v, ((depth_row, z_row), rgb_row)) in frame
             .depth
             .values()
             .chunks_exact(w)
-            .zip(points.chunks_exact_mut(w))
+            .zip(out.depth_m.chunks_exact_mut(w))
+            .zip(out.rgb.chunks_exact_mut(w))
             .enumerate()
         {
             let (xs, ys) = self.rays.row(v, w, &mut occlusion.row_y);
             // The row's valid points, gathered; then their colour pixels without branches, so
             // that the compiler can vectorise the projection; then colours or candidates.
-            rows.gather(frame.range, (xs, ys, depth_row), point_row);
-            valid += rows.at.len();
+            rows.gather(frame.range, (xs, ys, depth_row), z_row);
+            valid += rows.len;
             self.project(rows);
-            for k in 0..rows.at.len() {
+            for k in 0..rows.len {
                 let u = rows.at[k] as usize;
                 let (cu, cv, zc) = (rows.u[k], rows.v[k], rows.z[k]);
-                let mut rgb = None;
                 // Truncation is rounding half up here: both are >= 0.
                 if zc > 0.0 && cu >= 0.0 && cv >= 0.0 && cu < cwf && cv < chf {
                     let (cu, cv) = (cu as u32, cv as u32);
-                    if self.filter.is_none() {
-                        rgb = Some(rgb_at(raw_rgb, cw, cu as usize, cv as usize));
-                    } else {
+                    // Coloured now, while the colour row is in cache; the filter takes the
+                    // colour of occluded points away afterwards.
+                    rgb_row[u] = rgb_at(raw_rgb, cw, cu as usize, cv as usize);
+                    if self.filter.is_some() {
                         let depth_q = zbuffer::quantise(zc);
                         occlusion
                             .map
@@ -659,14 +855,10 @@ impl Rigid<'_> {
                         });
                     }
                 }
-                point_row[u] = Some(TexturedPoint {
-                    position_m: Point3::new(rows.px[k], rows.py[k], rows.pz[k]),
-                    rgb,
-                });
             }
         }
         if let Some(filter) = self.filter {
-            occlusion.paint(filter, raw_rgb, cw, points);
+            occlusion.hide_occluded(filter, out.rgb);
         }
         valid
     }
@@ -681,16 +873,12 @@ impl Rigid<'_> {
         let (fx, fy, cx, cy) = (c.fx, c.fy, c.cx + 0.5, c.cy + 0.5);
         let d = c.distortion;
         let distorted = !d.is_zero();
-        let n = rows.at.len();
-        for buffer in [&mut rows.u, &mut rows.v, &mut rows.z] {
-            buffer.resize(n, 0.0);
-        }
-        let inputs = rows.px.iter().zip(&rows.py).zip(&rows.pz);
-        let outputs = rows
-            .u
+        let n = rows.len;
+        let inputs = rows.px[..n].iter().zip(&rows.py[..n]).zip(&rows.pz[..n]);
+        let outputs = rows.u[..n]
             .iter_mut()
-            .zip(rows.v.iter_mut())
-            .zip(rows.z.iter_mut());
+            .zip(rows.v[..n].iter_mut())
+            .zip(rows.z[..n].iter_mut());
         for (((&px, &py), &pz), ((u, v), z)) in inputs.zip(outputs) {
             let qx = r[(0, 0)] * px + r[(0, 1)] * py + r[(0, 2)] * pz + t.x;
             let qy = r[(1, 0)] * px + r[(1, 1)] * py + r[(1, 2)] * pz + t.y;
@@ -708,9 +896,11 @@ impl Rigid<'_> {
 }
 
 /// Per-row scratch of the rigid engine: the row's valid points (column, position) and their
-/// colour pixel coordinates and depths in the colour camera.
+/// colour pixel coordinates and depths in the colour camera. Every buffer has the row's width;
+/// the first `len` entries are this row's.
 #[derive(Debug, Default)]
 struct RowBuffers {
+    len: usize,
     at: Vec<u32>,
     px: Vec<f64>,
     py: Vec<f64>,
@@ -721,68 +911,75 @@ struct RowBuffers {
 }
 
 impl RowBuffers {
-    /// Gather a row's valid points; every other slot of the row becomes `None`.
+    /// Gather a row's valid points and write the row's depths (0 where there is no point).
+    /// Branch-free: every pixel is written at the next free place, which only a valid pixel
+    /// then takes (valid and invalid pixels mix unpredictably at edges and holes).
     #[inline]
     fn gather(
         &mut self,
         range: DepthRange,
         (xs, ys, depth): (&[f64], &[f64], &[u16]),
-        point_row: &mut [Option<TexturedPoint>],
+        z_row: &mut [f64],
     ) {
-        self.at.clear();
-        self.px.clear();
-        self.py.clear();
-        self.pz.clear();
+        let width = depth.len();
+        if self.at.len() < width {
+            self.at.resize(width, 0);
+            for buffer in [
+                &mut self.px,
+                &mut self.py,
+                &mut self.pz,
+                &mut self.u,
+                &mut self.v,
+                &mut self.z,
+            ] {
+                buffer.resize(width, 0.0);
+            }
+        }
+        let mut n = 0;
         for (u, (((&rx, &ry), &raw), slot)) in xs
             .iter()
             .zip(ys)
             .zip(depth)
-            .zip(point_row.iter_mut())
+            .zip(z_row.iter_mut())
             .enumerate()
         {
-            *slot = None;
-            if let Some(z) = range.metres(raw)
-                && !rx.is_nan()
-            {
-                self.at.push(u as u32);
-                self.px.push(rx * z);
-                self.py.push(ry * z);
-                self.pz.push(z);
+            let z = range.metres_or_zero(raw);
+            // A NaN ray (distortion not invertible there) is no point.
+            let ok = z > 0.0 && !rx.is_nan();
+            let z = if ok { z } else { 0.0 };
+            *slot = z;
+            // n <= u < width: always in bounds.
+            if let (Some(at), Some(px), Some(py), Some(pz)) = (
+                self.at.get_mut(n),
+                self.px.get_mut(n),
+                self.py.get_mut(n),
+                self.pz.get_mut(n),
+            ) {
+                (*at, *px, *py, *pz) = (u as u32, rx * z, ry * z, z);
             }
+            n += usize::from(ok);
         }
+        self.len = n;
     }
 }
 
 impl Occlusion {
-    /// Colour the candidates the colour camera sees. The occlusion test (libfreenect2's: the
+    /// Take the colour away from the candidates the colour camera does not see. The occlusion test (libfreenect2's: the
     /// nearest depth the colour camera sees within the window around the point's colour
     /// pixel, which libfreenect2 spreads over the window and this gathers, the same for a
     /// symmetric window) runs in two steps: the block level clears most points; the fine
     /// level is filled and asked only around the contested ones.
-    fn paint(
-        &mut self,
-        filter: OcclusionFilter,
-        raw_rgb: &[u8],
-        width: usize,
-        points: &mut [Option<TexturedPoint>],
-    ) {
+    fn hide_occluded(&mut self, filter: OcclusionFilter, rgb: &mut [[u8; 4]]) {
         let half = (
             filter.half_width_px as usize,
             filter.half_height_px as usize,
         );
         let limit = |c: &Candidate| f64::from(c.depth_q) * (1.0 - filter.tolerance);
         let at = |c: &Candidate| (c.color_u as usize, c.color_v as usize);
-        let mut paint = |c: &Candidate| {
-            if let Some(point) = points[c.index as usize].as_mut() {
-                point.rgb = Some(rgb_at(raw_rgb, width, at(c).0, at(c).1));
-            }
-        };
         self.contested.clear();
         for (k, c) in self.candidates.iter().enumerate() {
             if self.map.contested(at(c), half, limit(c)) {
                 self.contested.push(k as u32);
-            } else {
-                paint(c);
             }
         }
         if self.contested.is_empty() {
@@ -793,43 +990,34 @@ impl Occlusion {
         }
         for &k in &self.contested {
             let c = &self.candidates[k as usize];
-            if !self.map.occluded(at(c), half, limit(c)) {
-                paint(c);
+            if self.map.occluded(at(c), half, limit(c)) {
+                rgb[c.index as usize] = NO_COLOR;
             }
         }
     }
 }
 
-/// The points of libfreenect2's registered frame. Returns the valid count.
-fn freenect2_points(
-    dcam: &CameraModel,
-    registered: &Freenect2Frame,
-    range: DepthRange,
-    points: &mut [Option<TexturedPoint>],
-) -> usize {
-    let (fx, fy, cx, cy) = (dcam.fx, dcam.fy, dcam.cx, dcam.cy);
-    let w = dcam.width as usize;
+/// The points of libfreenect2's registered frame (on its undistorted grid). Returns the
+/// valid count.
+fn freenect2_points(registered: &Freenect2Frame, range: DepthRange, out: Slots<'_>) -> usize {
     let mut valid = 0;
-    points.fill(None);
-    for (i, (&z_mm, rgb)) in registered
+    for (((&z_mm, rgb), z_out), entry) in registered
         .undistorted_mm
         .iter()
         .zip(registered.registered.iter())
-        .enumerate()
+        .zip(out.depth_m.iter_mut())
+        .zip(out.rgb.iter_mut())
     {
-        if z_mm.is_nan() || z_mm <= 0.0 {
-            continue;
-        }
         let z = f64::from(z_mm) * 1e-3 + range.offset_m;
-        if !(z > range.min_z && z <= range.max_z) {
-            continue;
+        // NaN and non-positive depths fail the range test.
+        if z_mm > 0.0 && z > range.min_z && z <= range.max_z {
+            valid += 1;
+            *z_out = z;
+            *entry = rgb.map_or(NO_COLOR, |[r, g, b]| [r, g, b, SEEN]);
+        } else {
+            *z_out = 0.0;
+            *entry = NO_COLOR;
         }
-        let (u, v) = ((i % w) as f64, (i / w) as f64);
-        valid += 1;
-        points[i] = Some(TexturedPoint {
-            position_m: Point3::new((u - cx) / fx * z, (v - cy) / fy * z, z),
-            rgb: *rgb,
-        });
     }
     valid
 }

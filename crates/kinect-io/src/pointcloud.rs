@@ -43,16 +43,10 @@ impl PointCloud {
         Self {
             width: cloud.width(),
             height: cloud.height(),
-            points: cloud
-                .points()
-                .iter()
-                .map(|p| p.map(|p| p.position_m))
-                .collect(),
+            points: (0..cloud.len()).map(|i| cloud.position_m(i)).collect(),
             colors: Some(
-                cloud
-                    .points()
-                    .iter()
-                    .map(|p| p.and_then(|p| p.rgb).unwrap_or(fill_rgb))
+                (0..cloud.len())
+                    .map(|i| cloud.color(i).unwrap_or(fill_rgb))
                     .collect(),
             ),
         }

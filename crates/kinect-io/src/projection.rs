@@ -189,12 +189,12 @@ impl ProjectionImage {
     }
 
     fn render(&mut self, cloud: &TexturedCloud, config: &ProjectionConfig) -> Result<()> {
-        if u32::try_from(cloud.points().len()).is_err() {
+        if u32::try_from(cloud.len()).is_err() {
             return Err(KinectError::param(
                 "cloud",
                 format!(
                     "{} entries; a projection image indexes at most 2^32",
-                    cloud.points().len()
+                    cloud.len()
                 ),
             ));
         }
@@ -210,8 +210,6 @@ impl ProjectionImage {
         let source = cloud.source_camera();
         let source_f = 0.5 * (source.fx + source.fy);
         let target_f = 0.5 * (cam.fx + cam.fy);
-        let cloud_to_source = cloud.camera_to_cloud().inverse();
-        let identity_source = *cloud.camera_to_cloud() == Isometry3::identity();
         // The cloud seen from its own camera (the paper's projection image on the capture's
         // image plane): every point lands on its own pixel, one pixel wide.
         // Checked on a sample of points, in case a hand-made cloud breaks that contract.
@@ -233,11 +231,8 @@ impl ProjectionImage {
             let radius = match config.splat {
                 Splat::Radius(r) => i64::from(r),
                 Splat::Auto => {
-                    let z_source = if identity_source {
-                        p.position_m.z
-                    } else {
-                        (cloud_to_source * p.position_m).z
-                    };
+                    // The point's depth in the camera whose pixel it is.
+                    let z_source = cloud.depths_m()[i];
                     let size = target_f * z_source / (source_f * pc.z);
                     let r = (size * (1.0 + SPLAT_MARGIN) - 1.0) * 0.5 - SPLAT_SLACK_PX;
                     ceil_non_negative(r).min(i64::from(MAX_AUTO_SPLAT_RADIUS_PX))
@@ -266,16 +261,13 @@ impl ProjectionImage {
                 }
             }
         }
-        let points = cloud.points();
         let age = self.age;
         for (px, &key) in self.image.pixels_mut().zip(self.keys.iter()) {
             px.0 = if key >> KEY_AGE_SHIFT != age {
                 config.background_rgb
             } else {
-                points
-                    .get(key as u32 as usize)
-                    .and_then(|p| p.as_ref())
-                    .and_then(|p| p.rgb)
+                cloud
+                    .color(key as u32 as usize)
                     .unwrap_or(config.uncolored_rgb)
             };
         }
@@ -387,12 +379,7 @@ impl ProjectionImage {
             // distance to any centre): the point of the pixel holding the position, if any.
             let (u, v) = self.camera.pixel_at(pixel)?;
             let i = self.point_index(u, v)?;
-            return cloud
-                .points()
-                .get(i)
-                .copied()
-                .flatten()
-                .map(|p| p.position_m);
+            return cloud.position_m(i);
         }
         let reference = scratch
             .iter()
@@ -408,9 +395,9 @@ impl ProjectionImage {
         let mut depths = Vec::with_capacity(scratch.len());
         let mut points = Vec::with_capacity(scratch.len());
         for c in scratch.iter() {
-            let p = cloud.points().get(c.2 as usize).copied().flatten()?;
-            depths.push((self.cloud_to_camera * p.position_m).z);
-            points.push(p.position_m);
+            let p = cloud.position_m(c.2 as usize)?;
+            depths.push((self.cloud_to_camera * p).z);
+            points.push(p);
         }
         let z = median(&mut depths)?;
         match self.camera.unproject(pixel, z) {
@@ -432,13 +419,13 @@ fn sample_on_own_pixels(
     cloud_to_camera: &Isometry3<f64>,
     cam: &CameraModel,
 ) -> bool {
-    let n = cloud.points().len();
+    let n = cloud.len();
     let step = (n / 64).max(1);
     let w = cam.width as usize;
-    (0..n).step_by(step).all(|i| match &cloud.points()[i] {
+    (0..n).step_by(step).all(|i| match cloud.position_m(i) {
         None => true,
         Some(p) => cam
-            .project(&(cloud_to_camera * p.position_m))
+            .project(&(cloud_to_camera * p))
             .and_then(|px| cam.pixel_at(&px))
             .is_some_and(|(u, v)| v as usize * w + u as usize == i),
     })

@@ -121,11 +121,9 @@ fn occlusion_filter_matches_a_brute_force_reference() {
     // the nearest depth of any point whose colour pixel is within the window.
     let t = calibration.depth_to_color().expect("ok").expect("rigid");
     let cam = calibration.color_camera;
-    let projected: Vec<Option<(i64, i64, f64)>> = cloud
-        .points()
-        .iter()
-        .map(|p| {
-            let pc = t * p.as_ref()?.position_m;
+    let projected: Vec<Option<(i64, i64, f64)>> = (0..cloud.len())
+        .map(|i| {
+            let pc = t * cloud.position_m(i)?;
             let px = cam.project(&pc)?;
             let (u, v) = cam.pixel_at(&px)?;
             Some((i64::from(u), i64::from(v), pc.z))
@@ -141,8 +139,8 @@ fn occlusion_filter_matches_a_brute_force_reference() {
         i64::from(filter.half_height_px),
     );
     let mut checked = 0;
-    for (p, proj) in cloud.points().iter().zip(&projected) {
-        let (Some(p), Some((u, v, z))) = (p, proj) else {
+    for (i, proj) in projected.iter().enumerate() {
+        let (Some(p), Some((u, v, z))) = (cloud.point(i), proj) else {
             continue;
         };
         let mut m = f64::INFINITY;
@@ -198,8 +196,8 @@ fn freenect2_pinhole_model_matches_the_rigid_model() {
         .expect("ok");
     let mut same = 0;
     let mut total = 0;
-    for (pa, pb) in a.points().iter().zip(b.points()) {
-        if let (Some(pa), Some(pb)) = (pa, pb) {
+    for i in 0..a.len() {
+        if let (Some(pa), Some(pb)) = (a.point(i), b.point(i)) {
             assert_relative_eq!(pa.position_m, pb.position_m, epsilon = 1e-9);
             total += 1;
             same += usize::from(pa.rgb == pb.rgb);
@@ -207,4 +205,101 @@ fn freenect2_pinhole_model_matches_the_rigid_model() {
     }
     // Rounding of f32 vs f64 may move a colour pixel at exact half-pixel ties only.
     assert!(same * 1000 >= total * 999, "{same} of {total}");
+}
+
+#[test]
+fn a_transform_in_the_config_or_afterwards_moves_every_point_the_same() {
+    let calibration = Calibration::kinect_v2();
+    let (mut depth, color) = flat_wall(&calibration, 1800);
+    // A hole and a nearer patch, so that not every entry is the same.
+    let w = calibration.depth_camera.width as usize;
+    for (i, d) in depth.values_mut().iter_mut().enumerate() {
+        if i % w < 40 {
+            *d = 0;
+        } else if (i / w) % 50 < 10 {
+            *d = 1200;
+        }
+    }
+    let world = Isometry3::new(Vector3::new(0.3, -1.2, 2.0), Vector3::new(0.2, -0.4, 1.1));
+    let plain = CloudBuilder::new(&calibration, CloudConfig::default())
+        .expect("ok")
+        .build(&depth, &color)
+        .expect("ok");
+    let config = CloudConfig {
+        camera_to_world: Some(world),
+        ..CloudConfig::default()
+    };
+    let moved = CloudBuilder::new(&calibration, config)
+        .expect("ok")
+        .build(&depth, &color)
+        .expect("ok");
+    let after = plain.transformed(&world);
+    assert_eq!(moved.valid_count(), plain.valid_count());
+    assert!(plain.valid_count() < plain.len());
+    let mut checked = 0;
+    for i in 0..plain.len() {
+        let (Some(p), Some(m), Some(a)) = (plain.point(i), moved.point(i), after.point(i)) else {
+            assert!(plain.point(i).is_none() && moved.point(i).is_none());
+            assert!(after.point(i).is_none());
+            continue;
+        };
+        assert_relative_eq!(m.position_m, world * p.position_m, epsilon = 1e-12);
+        assert_relative_eq!(a.position_m, m.position_m, epsilon = 1e-12);
+        assert_eq!((m.rgb, a.rgb), (p.rgb, p.rgb));
+        // The packed depth is the point's z in its own camera.
+        assert_relative_eq!(moved.depths_m()[i], p.position_m.z, epsilon = 1e-12);
+        checked += 1;
+    }
+    assert_eq!(checked, plain.valid_count());
+    // iter_valid, point, get and position_m agree.
+    for (i, p) in moved.iter_valid() {
+        let (u, v) = ((i % w) as u32, (i / w) as u32);
+        assert_eq!(moved.get(u, v), Some(p));
+        assert_eq!(moved.position_m(i), Some(p.position_m));
+        assert_eq!(moved.color(i), p.rgb);
+    }
+    assert_eq!(moved.point(moved.len()), None);
+    assert_eq!(moved.get(moved.width(), 0), None);
+}
+
+#[test]
+fn a_hand_made_cloud_checks_its_inputs_and_keeps_them() {
+    let camera = Calibration::kinect_v2().depth_camera;
+    let n = camera.pixel_count();
+    let mut depths = vec![0.0; n];
+    let mut colours = vec![None; n];
+    depths[1000] = 2.5;
+    colours[1000] = Some([1, 2, 3]);
+    depths[2000] = 1.5;
+    // A colour where there is no point is not a point.
+    colours[3000] = Some([9, 9, 9]);
+    let cloud =
+        TexturedCloud::new(camera, depths.clone(), &colours, Isometry3::identity()).expect("valid");
+    assert_eq!(cloud.valid_count(), 2);
+    let p = cloud.point(1000).expect("point");
+    assert_eq!(p.rgb, Some([1, 2, 3]));
+    assert_relative_eq!(p.position_m.z, 2.5, epsilon = 1e-12);
+    // On its pixel's ray: it projects back onto its own pixel.
+    let px = camera.project(&p.position_m).expect("in front");
+    let w = camera.width as usize;
+    assert_eq!(
+        camera.pixel_at(&px),
+        Some(((1000 % w) as u32, (1000 / w) as u32))
+    );
+    assert_eq!(cloud.point(2000).and_then(|p| p.rgb), None);
+    assert_eq!(cloud.point(3000), None);
+    assert_eq!(cloud.color(3000), None);
+    for bad in [-1.0, f64::NAN, f64::INFINITY] {
+        let mut d = depths.clone();
+        d[5] = bad;
+        let err = TexturedCloud::new(camera, d, &colours, Isometry3::identity());
+        assert!(
+            matches!(err, Err(KinectError::InvalidParameter { .. })),
+            "{bad}: {err:?}"
+        );
+    }
+    let short = TexturedCloud::new(camera, vec![1.0; n - 1], &colours, Isometry3::identity());
+    assert!(matches!(short, Err(KinectError::SizeMismatch { .. })));
+    let short = TexturedCloud::new(camera, depths, &colours[1..], Isometry3::identity());
+    assert!(matches!(short, Err(KinectError::SizeMismatch { .. })));
 }
