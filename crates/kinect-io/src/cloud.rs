@@ -490,25 +490,18 @@ impl Rays {
         }
     }
 
-    /// Call `f(raw depth, ray x, depth slot)` for every pixel, row-major (`depth` and
-    /// `depth_m` have the camera's pixel count).
-    #[inline]
-    fn for_each(&self, depth: &[u16], depth_m: &mut [f64], mut f: impl FnMut(u16, f64, &mut f64)) {
-        match self {
-            Self::Separable { columns, .. } => {
-                let w = columns.len();
-                for (depth_row, out_row) in depth.chunks_exact(w).zip(depth_m.chunks_exact_mut(w)) {
-                    for ((&x, &raw), out) in columns.iter().zip(depth_row).zip(out_row) {
-                        f(raw, x, out);
-                    }
-                }
-            }
-            Self::Table { xs, .. } => {
-                for ((&x, &raw), out) in xs.iter().zip(depth).zip(depth_m) {
-                    f(raw, x, out);
-                }
-            }
-        }
+    /// The x rays of each row of a camera `width` pixels wide (all a pixel's validity
+    /// needs: a ray that cannot be had is NaN in x).
+    fn x_rows(&self, width: usize) -> impl Iterator<Item = &[f64]> {
+        let (separable, table): (&[f64], &[f64]) = match self {
+            Self::Separable { columns, .. } => (columns, &[]),
+            Self::Table { xs, .. } => (&[], xs),
+        };
+        let rows = match self {
+            Self::Separable { rows, .. } => rows.len(),
+            Self::Table { .. } => 0,
+        };
+        std::iter::repeat_n(separable, rows).chain(table.chunks_exact(width.max(1)))
     }
 }
 
@@ -531,6 +524,8 @@ struct Occlusion {
     map: MinDepthMap,
     /// The points that project onto the colour image.
     candidates: Vec<Candidate>,
+    /// Their depth pixels (flat index), apart: only the few occluded ones are looked up.
+    candidate_pixels: Vec<u32>,
     /// Positions in `candidates` that the test's block level could not clear.
     contested: Vec<u32>,
     /// Row scratch of the rigid engine.
@@ -539,14 +534,24 @@ struct Occlusion {
     row_y: Vec<f64>,
 }
 
-/// A point that projects onto the colour image: its depth pixel (flat index), its colour
-/// pixel, and its quantised depth in the colour camera (for the occlusion filter).
+/// A point that projects onto the colour image: its colour pixel (`v << 16 | u`; colour
+/// images are at most [`crate::camera::MAX_IMAGE_SIDE_PX`] < 2^16 a side) and its quantised
+/// depth in the colour camera (for the occlusion filter). Eight bytes: the test streams
+/// through every candidate twice.
 #[derive(Debug, Clone, Copy)]
 struct Candidate {
-    index: u32,
-    color_u: u32,
-    color_v: u32,
+    color_px: u32,
     depth_q: u32,
+}
+
+impl Candidate {
+    #[inline]
+    fn at(self) -> (usize, usize) {
+        (
+            (self.color_px & 0xffff) as usize,
+            (self.color_px >> 16) as usize,
+        )
+    }
 }
 
 impl CloudBuilder {
@@ -591,6 +596,7 @@ impl CloudBuilder {
             engine,
             occlusion: Occlusion {
                 candidates: Vec::with_capacity(calibration.depth_camera.pixel_count()),
+                candidate_pixels: Vec::with_capacity(calibration.depth_camera.pixel_count()),
                 ..Occlusion::default()
             },
         })
@@ -719,16 +725,10 @@ struct DepthRange {
 }
 
 impl DepthRange {
-    /// The depth in metres of a raw value, when it is a measurement inside the range.
+    /// The depth in metres of a raw value when it is a measurement inside the range, else 0
+    /// (`min_z >= 0`, so a kept depth is > 0).
     #[inline]
-    fn metres(&self, raw: u16) -> Option<f64> {
-        let z = self.metres_or_zero(raw);
-        (z > 0.0).then_some(z)
-    }
-
-    /// [`DepthRange::metres`], 0 for no measurement (`min_z >= 0`, so a kept depth is > 0).
-    #[inline]
-    fn metres_or_zero(&self, raw: u16) -> f64 {
+    fn metres(&self, raw: u16) -> f64 {
         let z = f64::from(raw) * self.unit_m + self.offset_m;
         if raw != 0 && z > self.min_z && z <= self.max_z {
             z
@@ -771,27 +771,28 @@ fn freenect2_grid(dcam: &CameraModel) -> CameraModel {
 fn build_registered(rays: &Rays, frame: &Inputs<'_>, out: Slots<'_>) -> usize {
     // The camera's driver registered depth to colour (and so resolved occlusion): every
     // point takes its own pixel's colour, as TUM's tools and Open3D do.
+    let w = frame.depth.width() as usize;
     let mut valid = 0;
-    rays.for_each(frame.depth.values(), out.depth_m, |raw, rx, z_out| {
-        *z_out = match frame.range.metres(raw) {
-            Some(z) if !rx.is_nan() => {
-                valid += 1;
-                z
-            }
-            _ => 0.0,
-        };
-    });
-    for ((entry, rgb), &z) in out
-        .rgb
-        .iter_mut()
-        .zip(frame.color.as_raw().chunks_exact(3))
-        .zip(out.depth_m.iter())
-    {
-        *entry = if z > 0.0 {
-            [rgb[0], rgb[1], rgb[2], SEEN]
-        } else {
-            NO_COLOR
-        };
+    let rows = rays
+        .x_rows(w)
+        .zip(frame.depth.values().chunks_exact(w))
+        .zip(frame.color.as_raw().chunks_exact(3 * w))
+        .zip(
+            out.depth_m
+                .chunks_exact_mut(w)
+                .zip(out.rgb.chunks_exact_mut(w)),
+        );
+    for (((xs, depth), color), (z_row, rgb_row)) in rows {
+        let (xs, depth, color) = (&xs[..w], &depth[..w], &color[..3 * w]);
+        let (z_row, rgb_row) = (&mut z_row[..w], &mut rgb_row[..w]);
+        for u in 0..w {
+            let z = frame.range.metres(depth[u]);
+            let ok = z > 0.0 && !xs[u].is_nan();
+            valid += usize::from(ok);
+            z_row[u] = if ok { z } else { 0.0 };
+            let c = [color[3 * u], color[3 * u + 1], color[3 * u + 2], SEEN];
+            rgb_row[u] = if ok { c } else { NO_COLOR };
+        }
     }
     valid
 }
@@ -813,6 +814,7 @@ impl Rigid<'_> {
             occlusion.map.begin_frame(cw, ch);
         }
         occlusion.candidates.clear();
+        occlusion.candidate_pixels.clear();
         let raw_rgb = frame.color.as_raw();
         let (cwf, chf) = (cw as f64, ch as f64);
         let w = frame.depth.width() as usize;
@@ -848,11 +850,10 @@ impl Rigid<'_> {
                             .map
                             .lower_coarse((cu as usize, cv as usize), depth_q);
                         occlusion.candidates.push(Candidate {
-                            index: (v * w + u) as u32,
-                            color_u: cu,
-                            color_v: cv,
+                            color_px: cv << 16 | cu,
                             depth_q,
                         });
+                        occlusion.candidate_pixels.push((v * w + u) as u32);
                     }
                 }
             }
@@ -943,7 +944,7 @@ impl RowBuffers {
             .zip(z_row.iter_mut())
             .enumerate()
         {
-            let z = range.metres_or_zero(raw);
+            let z = range.metres(raw);
             // A NaN ray (distortion not invertible there) is no point.
             let ok = z > 0.0 && !rx.is_nan();
             let z = if ok { z } else { 0.0 };
@@ -975,10 +976,9 @@ impl Occlusion {
             filter.half_height_px as usize,
         );
         let limit = |c: &Candidate| f64::from(c.depth_q) * (1.0 - filter.tolerance);
-        let at = |c: &Candidate| (c.color_u as usize, c.color_v as usize);
         self.contested.clear();
         for (k, c) in self.candidates.iter().enumerate() {
-            if self.map.contested(at(c), half, limit(c)) {
+            if self.map.contested(c.at(), half, limit(c)) {
                 self.contested.push(k as u32);
             }
         }
@@ -986,12 +986,12 @@ impl Occlusion {
             return;
         }
         for c in &self.candidates {
-            self.map.lower_fine_if_needed(at(c), c.depth_q);
+            self.map.lower_fine_if_needed(c.at(), c.depth_q);
         }
         for &k in &self.contested {
             let c = &self.candidates[k as usize];
-            if self.map.occluded(at(c), half, limit(c)) {
-                rgb[c.index as usize] = NO_COLOR;
+            if self.map.occluded(c.at(), half, limit(c)) {
+                rgb[self.candidate_pixels[k as usize] as usize] = NO_COLOR;
             }
         }
     }
