@@ -27,6 +27,7 @@ use image::RgbImage;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use rosbag::{ChunkRecord, IndexRecord, MessageRecord, RosBag};
 
+use crate::bag_chunk::check_chunk;
 use crate::calibration::{Calibration, Extrinsics, RegistrationModel};
 use crate::camera::{CameraModel, Distortion};
 use crate::depth::{DEPTH_UNIT_MM_M, DepthImage};
@@ -444,7 +445,7 @@ impl Container for BagRecording {
         let bag = RosBag::new(path).map_err(|e| KinectError::io(path, e))?;
         let label = |what: &str| PathBuf::from(format!("{} ({what} of frame {i})", path.display()));
         let (color_label, depth_label) = (label("colour"), label("depth"));
-        let color = with_message(&bag, c, &color_label, |bytes| {
+        let color = with_message(&bag, path, c, &color_label, |bytes| {
             let m = parse_image(bytes, &color_label)?;
             let layout = color_layout(m.encoding).ok_or_else(|| KinectError::Unsupported {
                 path: color_label.clone(),
@@ -459,7 +460,7 @@ impl Container for BagRecording {
                 &color_label,
             )
         })?;
-        let depth = with_message(&bag, d, &depth_label, |bytes| {
+        let depth = with_message(&bag, path, d, &depth_label, |bytes| {
             let m = parse_image(bytes, &depth_label)?;
             if !matches!(m.encoding.to_ascii_lowercase().as_str(), "16uc1" | "mono16") {
                 return Err(KinectError::Unsupported {
@@ -515,11 +516,13 @@ fn color_layout(encoding: &str) -> Option<RawColor> {
 /// Run `f` on the bytes of the message at `at`.
 fn with_message<T>(
     bag: &RosBag,
+    path: &Path,
     at: MsgRef,
     label: &Path,
     f: impl FnOnce(&[u8]) -> Result<T>,
 ) -> Result<T> {
     let bad = |what: String| KinectError::format(label, what);
+    check_chunk(path, at.chunk_pos)?;
     let mut iter = bag.chunk_records();
     iter.seek(at.chunk_pos)
         .map_err(|e| bad(format!("ROS bag: {e}")))?;
@@ -558,6 +561,7 @@ fn scan_chunks(
     };
     let mut iter = bag.chunk_records();
     for &chunk_pos in chunks {
+        check_chunk(path, chunk_pos)?;
         iter.seek(chunk_pos).map_err(rosbag_error)?;
         let Some(Ok(ChunkRecord::Chunk(chunk))) = iter.next() else {
             return Err(KinectError::format(

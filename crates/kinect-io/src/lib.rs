@@ -54,6 +54,7 @@
 //! ```
 
 mod bag;
+mod bag_chunk;
 mod calibration;
 mod camera;
 mod cloud;

@@ -222,6 +222,25 @@ fn damaged_realsense_bags_say_what_is_wrong() {
         .expect_err("no depth topic")
         .to_string();
     assert!(err.contains("Dxpth_0") && err.contains("cut.bag"), "{err}");
+    // A chunk that declares 4 GB uncompressed is refused before anything reserves it.
+    let mut huge = bytes.clone();
+    let op = find(&huge, b"\x04\x00\x00\x00op=\x05").expect("a chunk record");
+    let size_field = b"\x09\x00\x00\x00size=";
+    let size = find(&huge[op.saturating_sub(64)..], size_field).expect("its size field")
+        + op.saturating_sub(64)
+        + size_field.len();
+    huge[size..size + 4].copy_from_slice(&0xF000_0000u32.to_le_bytes());
+    std::fs::write(&path, &huge).expect("write");
+    let err = Recording::open(&path).expect_err("huge chunk").to_string();
+    assert!(
+        err.contains("cut.bag") && err.contains("declares 4026531840 bytes"),
+        "{err}"
+    );
+}
+
+/// Where `needle` first occurs in `hay`.
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    hay.windows(needle.len()).position(|w| w == needle)
 }
 
 /// Damage a fixture (flips at `ends`: offsets from the front, and from the back when
