@@ -206,7 +206,6 @@ impl ProjectionImage {
             self.age = (1 << (64 - KEY_AGE_SHIFT)) - 1;
         }
         self.age -= 1;
-        let (w, h) = (i64::from(cam.width), i64::from(cam.height));
         let source = cloud.source_camera();
         let source_f = 0.5 * (source.fx + source.fy);
         let target_f = 0.5 * (cam.fx + cam.fy);
@@ -218,14 +217,38 @@ impl ProjectionImage {
             && is_identity(&(self.cloud_to_camera * cloud.camera_to_cloud()))
             && sample_on_own_pixels(cloud, &self.cloud_to_camera, &cam);
         if own_view {
-            for (i, p) in cloud.iter_valid() {
-                let z = (self.cloud_to_camera * p.position_m).z;
+            // Seen from its own camera, a point's depth is the one the cloud stores.
+            for (i, &z) in cloud.depths_m().iter().enumerate() {
                 if z > 0.0 {
                     self.keys[i] = self.key(z, i);
                 }
             }
+        } else {
+            self.splat(cloud, config, (source_f, target_f));
         }
-        for (i, p) in cloud.iter_valid().filter(|_| !own_view) {
+        let age = self.age;
+        for (px, &key) in self.image.pixels_mut().zip(self.keys.iter()) {
+            px.0 = if key >> KEY_AGE_SHIFT != age {
+                config.background_rgb
+            } else {
+                cloud
+                    .color(key as u32 as usize)
+                    .unwrap_or(config.uncolored_rgb)
+            };
+        }
+        Ok(())
+    }
+
+    /// Splat every point of `cloud` into the keys (a view other than the cloud's own).
+    fn splat(
+        &mut self,
+        cloud: &TexturedCloud,
+        config: &ProjectionConfig,
+        (source_f, target_f): (f64, f64),
+    ) {
+        let cam = self.camera;
+        let (w, h) = (i64::from(cam.width), i64::from(cam.height));
+        for (i, p) in cloud.iter_valid() {
             let pc = self.cloud_to_camera * p.position_m;
             let Some(px) = cam.project(&pc) else { continue };
             let radius = match config.splat {
@@ -261,17 +284,6 @@ impl ProjectionImage {
                 }
             }
         }
-        let age = self.age;
-        for (px, &key) in self.image.pixels_mut().zip(self.keys.iter()) {
-            px.0 = if key >> KEY_AGE_SHIFT != age {
-                config.background_rgb
-            } else {
-                cloud
-                    .color(key as u32 as usize)
-                    .unwrap_or(config.uncolored_rgb)
-            };
-        }
-        Ok(())
     }
 
     /// The camera of this image.
