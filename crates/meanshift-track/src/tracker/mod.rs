@@ -56,6 +56,7 @@ mod init;
 mod joint;
 mod passes;
 mod state;
+mod swaps;
 mod track;
 
 use blobs::*;
@@ -264,6 +265,9 @@ struct MarkerState {
     home: Point2<f64>,
     /// The farthest the marker has been found from its home (pixels).
     reach_px: f64,
+    /// The swing line the marker is known by: its first, replaced only by lines along the
+    /// same direction (a swap of two markers of one look is seen against it).
+    signature: Option<crate::swing::SwingLine>,
     reference: Reference,
     depth_m: Option<f64>,
     /// Frames since the last measurement.
@@ -493,6 +497,7 @@ impl Tracker {
         self.learn_coherence(&results);
         let merged = self.merged_markers(&results, &predictions);
         self.record(frame, depth, results, &merged);
+        self.repair_swaps();
         if let Some(p) = self.previous.as_mut() {
             p.copy_from_slice(frame);
         }

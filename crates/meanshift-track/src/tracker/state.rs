@@ -21,6 +21,7 @@ impl MarkerState {
             last_center: center,
             home: center,
             reach_px: 0.0,
+            signature: None,
             reference: Reference {
                 mass: 1.0,
                 pixel_weight: 255.0,

@@ -1,0 +1,247 @@
+//! Undoing identity swaps of two markers of one look.
+//!
+//! Two markers of one look that cross can be taken for each other where their predictions
+//! fail (at the turn of a swing, at a release); from then on each follows the other's
+//! marker, and a constant-velocity model with a learnt swing keeps the swap for as long as
+//! they swing. What tells them apart afterwards is where each swings: a branch marker swings
+//! along its own line, which the tracker remembers ([`MarkerState::signature`]: the swing
+//! line, kept only while the marker's recent track agrees with it). When over the last
+//! [`SWAP_FRAMES`] frames each of the two tracks lies along the other's line and not along
+//! its own, the two markers' states are exchanged, and their observations since they were
+//! last together are exchanged too (the swap happened there).
+
+use super::*;
+use crate::swing::SwingLine;
+
+/// Frames of both tracks a swap is judged on (about half a swing at 30 fps).
+const SWAP_FRAMES: usize = 8;
+/// Of those, frames each marker must have been found in.
+const SWAP_MIN_FOUND: usize = 6;
+/// The exchanged identities must explain the tracks this much better (ratio of the summed
+/// offsets from the lines, in spreads across them).
+const SWAP_RATIO: f64 = 0.4;
+/// ... and well in themselves: mean offset per frame from the line, spreads.
+const SWAP_MAX_OFFSET: f64 = 1.5;
+/// A marker's new swing line replaces its signature when their directions agree this well
+/// (|cos| of the angle between their normals; 0.9 is 26°).
+const SIGNATURE_AGREE: f64 = 0.9;
+/// Two markers were together (the swap can have happened) when their centres were within
+/// this many windows.
+const TOGETHER_WINDOWS: f64 = 1.5;
+/// How far back the observations are exchanged at most (the swing history's length).
+const MAX_REVISED_FRAMES: usize = 30;
+
+impl Tracker {
+    /// Keep each marker's signature line, then exchange any pair of markers of one look
+    /// whose tracks run along each other's lines.
+    pub(super) fn repair_swaps(&mut self) {
+        if matches!(self.config.model, AppearanceModel::Gray { .. }) {
+            // Gray targets in rows swing across each other's places (see the home rule).
+            return;
+        }
+        for m in &mut self.markers {
+            if !m.last_status.found() {
+                continue;
+            }
+            if let Some(line) = m.swing.line() {
+                let agrees = m
+                    .signature
+                    .is_none_or(|s| s.normal.dot(&line.normal).abs() >= SIGNATURE_AGREE);
+                if agrees {
+                    m.signature = Some(line);
+                }
+            }
+        }
+        let n = self.markers.len();
+        for i in 0..n {
+            for j in i + 1..n {
+                if !same_look(&self.markers[i], &self.markers[j]) {
+                    continue;
+                }
+                let (Some(si), Some(sj)) = (self.markers[i].signature, self.markers[j].signature)
+                else {
+                    continue;
+                };
+                if self.swapped(i, j, si, sj) {
+                    self.exchange(i, j);
+                }
+            }
+        }
+    }
+
+    /// Whether the recent tracks of `i` and `j` lie along each other's lines, not their own.
+    fn swapped(&self, i: usize, j: usize, si: SwingLine, sj: SwingLine) -> bool {
+        let recent = |k: usize| -> Vec<Point2<f64>> {
+            let obs = &self.tracks[k].observations;
+            obs[obs.len().saturating_sub(SWAP_FRAMES)..]
+                .iter()
+                .filter(|o| o.status.found())
+                .filter_map(|o| o.center)
+                .collect()
+        };
+        let (pi, pj) = (recent(i), recent(j));
+        if pi.len() < SWAP_MIN_FOUND || pj.len() < SWAP_MIN_FOUND {
+            return false;
+        }
+        let mean = |pts: &[Point2<f64>], line: &SwingLine| {
+            pts.iter().map(|&p| line.offset(p)).sum::<f64>() / pts.len() as f64
+        };
+        let keep = mean(&pi, &si) + mean(&pj, &sj);
+        let (swap_i, swap_j) = (mean(&pi, &sj), mean(&pj, &si));
+        swap_i <= SWAP_MAX_OFFSET
+            && swap_j <= SWAP_MAX_OFFSET
+            && swap_i + swap_j < SWAP_RATIO * keep
+    }
+
+    /// Exchange what `i` and `j` know of where they are (motion, swing, surroundings), keep
+    /// what they are (name, look, home, signature), and exchange their observations since
+    /// they were last together.
+    fn exchange(&mut self, i: usize, j: usize) {
+        let (a, b) = self.markers.split_at_mut(j);
+        let (a, b) = (&mut a[i], &mut b[0]);
+        std::mem::swap(&mut a.filter, &mut b.filter);
+        std::mem::swap(&mut a.swing, &mut b.swing);
+        std::mem::swap(&mut a.acceleration_px, &mut b.acceleration_px);
+        std::mem::swap(&mut a.last_center, &mut b.last_center);
+        std::mem::swap(&mut a.size, &mut b.size);
+        std::mem::swap(&mut a.depth_m, &mut b.depth_m);
+        std::mem::swap(&mut a.misses, &mut b.misses);
+        std::mem::swap(&mut a.last_status, &mut b.last_status);
+        std::mem::swap(&mut a.context, &mut b.context);
+        std::mem::swap(&mut a.context_level, &mut b.context_level);
+        std::mem::swap(&mut a.context_var, &mut b.context_var);
+        std::mem::swap(&mut a.gate_var, &mut b.gate_var);
+        let together = TOGETHER_WINDOWS * window_px(a).max(window_px(b));
+        let (ta, tb) = self.tracks.split_at_mut(j);
+        let (oa, ob) = (&mut ta[i].observations, &mut tb[0].observations);
+        let len = oa.len().min(ob.len());
+        let oldest = len.saturating_sub(MAX_REVISED_FRAMES);
+        // From the last frame they were together on (or as far back as the recent track
+        // that showed the swap).
+        let from = (oldest..len)
+            .rev()
+            .find(|&f| match (oa[f].center, ob[f].center) {
+                (Some(p), Some(q)) => (p - q).norm() < together,
+                _ => false,
+            })
+            .map_or(len.saturating_sub(SWAP_FRAMES), |f| f + 1);
+        for f in from..len {
+            std::mem::swap(&mut oa[f], &mut ob[f]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::swing::SwingLine;
+    use image::Rgb;
+
+    /// Two markers of one colour.
+    fn tracker() -> Result<Tracker> {
+        let frame = RgbImage::from_fn(192, 64, |x, y| {
+            let on = |cx: u32| x.abs_diff(cx) <= 4 && y.abs_diff(30) <= 4;
+            if on(20) || on(150) {
+                Rgb([215, 25, 30])
+            } else {
+                Rgb([100, 110, 95])
+            }
+        });
+        let inits = [
+            MarkerInit {
+                id: "A".into(),
+                window: PixelRect::new(15, 25, 11, 11),
+            },
+            MarkerInit {
+                id: "B".into(),
+                window: PixelRect::new(145, 25, 11, 11),
+            },
+        ];
+        let mut t = Tracker::new(TrackerConfig::default(), &frame, None, &inits)?;
+        // A swings horizontally about (60, 30), B vertically about (100, 30).
+        t.markers[0].signature = Some(SwingLine {
+            centre: Point2::new(60.0, 30.0),
+            normal: Vector2::new(0.0, 1.0),
+            sigma_px: 3.0,
+            half_length_px: 15.0,
+        });
+        t.markers[1].signature = Some(SwingLine {
+            centre: Point2::new(100.0, 30.0),
+            normal: Vector2::new(1.0, 0.0),
+            sigma_px: 3.0,
+            half_length_px: 15.0,
+        });
+        Ok(t)
+    }
+
+    fn push(t: &mut Tracker, a: Point2<f64>, b: Point2<f64>) {
+        for (k, p) in [(0, a), (1, b)] {
+            t.tracks[k].observations.push(Observation {
+                center: Some(p),
+                window: PixelRect::centered_at(p, 11, 11),
+                status: TrackStatus::Tracked,
+                confidence: 1.0,
+            });
+        }
+    }
+
+    /// Frames 1-3 together; then 8 frames with A on B's line and B on A's (`swapped`) or
+    /// each on its own.
+    fn run(swapped: bool) -> Result<(Tracker, Vec<Option<Point2<f64>>>)> {
+        let mut t = tracker()?;
+        for _ in 0..3 {
+            push(&mut t, Point2::new(78.0, 30.0), Point2::new(84.0, 30.0));
+        }
+        for k in 0..8 {
+            let horizontal = Point2::new(50.0 + 3.0 * f64::from(k), 30.5);
+            let vertical = Point2::new(100.5, 18.0 + 3.0 * f64::from(k));
+            if swapped {
+                push(&mut t, vertical, horizontal);
+            } else {
+                push(&mut t, horizontal, vertical);
+            }
+        }
+        t.markers[0].filter.position = Point2::new(100.0, 40.0);
+        t.markers[1].filter.position = Point2::new(71.0, 30.0);
+        let before = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        t.repair_swaps();
+        Ok((t, before))
+    }
+
+    #[test]
+    fn tracks_along_each_others_lines_are_exchanged_back_to_where_they_met() -> Result<()> {
+        let (t, before) = run(true)?;
+        let a = &t.tracks[0].observations;
+        // Frames 0-3 (first frame, then together) stay; the 8 after are exchanged.
+        for (f, o) in a.iter().enumerate() {
+            if f <= 3 {
+                assert_eq!(o.center, before[f], "frame {f}");
+            } else {
+                let c = o.center.expect("found");
+                assert!((c.y - 30.5).abs() < 1e-9, "frame {f}: {c}");
+            }
+        }
+        assert!(
+            t.tracks[1].observations[4..]
+                .iter()
+                .all(|o| { o.center.is_some_and(|c| (c.x - 100.5).abs() < 1e-9) })
+        );
+        // Where each is now goes with the exchange; who each is stays.
+        assert_eq!(t.markers[0].filter.position, Point2::new(71.0, 30.0));
+        assert_eq!(t.markers[0].id, "A");
+        assert_eq!(
+            t.markers[0].signature.map(|s| s.centre),
+            Some(Point2::new(60.0, 30.0))
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn tracks_along_their_own_lines_stay() -> Result<()> {
+        let (t, before) = run(false)?;
+        let after: Vec<_> = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        assert_eq!(after, before);
+        assert_eq!(t.markers[0].filter.position, Point2::new(100.0, 40.0));
+        Ok(())
+    }
+}
