@@ -31,6 +31,11 @@
 //! 4. A marker without a measurement coasts on its prediction (`predicted`) for up to
 //!    [`TrackerConfig::max_coast_frames`] frames, then is `lost` (no centre) while the search
 //!    goes on.
+//! 5. **Swaps undone**: two markers of one look (colour models) whose last frames each run
+//!    along the swing line the other is known by, and not their own, are exchanged, with
+//!    their observations since they last met (`tracker::swaps`). The frames between the swap
+//!    and its repair are revised in [`Tracker::tracks`]: a caller that reads a frame's
+//!    result at once may see up to 30 earlier frames change later.
 //!
 //! Centres are in pixel coordinates with pixel centres at integers.
 
