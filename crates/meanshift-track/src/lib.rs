@@ -87,8 +87,8 @@ pub use meanshift::{
 pub use model::AppearanceModel;
 pub use rect::PixelRect;
 pub use tracker::{
-    DepthView, MarkerInit, MotionModel, Observation, Track, TrackStatus, TrackSummary, Tracker,
-    TrackerConfig, WindowMode,
+    DepthView, MAX_REVISED_FRAMES, MarkerInit, MotionModel, Observation, Track, TrackStatus,
+    TrackSummary, Tracker, TrackerConfig, WindowMode,
 };
 pub use view::ImageView;
 

@@ -13,7 +13,7 @@ use kinect_io::{
     Calibration, CameraModel, CloudBuilder, CloudConfig, DepthImage, LiftConfig, ProjectionConfig,
     ProjectionImage, StillCloud, TexturedCloud, project_cloud,
 };
-use meanshift_track::{MarkerInit, PixelRect, Tracker, TrackerConfig};
+use meanshift_track::{MAX_REVISED_FRAMES, MarkerInit, PixelRect, Track, Tracker, TrackerConfig};
 use nalgebra::{Isometry3, Point2, Point3};
 
 use crate::error::{PipelineError, Result};
@@ -82,6 +82,10 @@ pub struct Capture {
     pub produce_s: f64,
     /// Seconds spent tracking and lifting.
     pub track_s: f64,
+    /// Marker-frames whose centre the tracker revised after they had been lifted (an identity
+    /// swap of two markers of one look, undone): they hold the revised centre and no
+    /// position (that frame's cloud is gone; a gap, not the other marker's position).
+    pub revised_frames: usize,
 }
 
 /// Run `produce` for frames `0..frames` on worker threads, build each cloud and projection
@@ -180,6 +184,7 @@ fn consume(
         dropped: Vec::new(),
         produce_s: 0.0,
         track_s: 0.0,
+        revised_frames: 0,
     };
     let lift = LiftConfig::for_plane(&setup.plane, &setup.calibration.depth_camera);
     let mut scratch = Vec::new();
@@ -226,6 +231,7 @@ fn consume(
                 .map_err(|e| PipelineError::frame(k, "tracking", e))?,
         }
         let tracks = tracker.as_ref().map_or(&[][..], Tracker::tracks);
+        capture.revised_frames += take_revisions(tracks, &mut capture);
         for (m, track) in tracks.iter().enumerate() {
             let center = track.observations.last().and_then(|o| o.center);
             capture.centers[m].push(center);
@@ -246,6 +252,25 @@ fn consume(
         progress(k, frames);
     }
     Ok(capture)
+}
+
+/// Take the centres the tracker revised in frames already recorded (at most
+/// [`MAX_REVISED_FRAMES`] back); their positions become gaps. Returns how many changed.
+fn take_revisions(tracks: &[Track], capture: &mut Capture) -> usize {
+    let mut revised = 0;
+    for (m, track) in tracks.iter().enumerate() {
+        let (centers, positions) = (&mut capture.centers[m], &mut capture.positions_m[m]);
+        let recorded = centers.len().min(track.observations.len());
+        for f in recorded.saturating_sub(MAX_REVISED_FRAMES)..recorded {
+            let now = track.observations[f].center;
+            if now != centers[f] {
+                centers[f] = now;
+                positions[f] = None;
+                revised += 1;
+            }
+        }
+    }
+    revised
 }
 
 /// The markers whose window lies on the first frame, and the others with the reason.
@@ -290,4 +315,60 @@ pub struct DroppedMarker {
     pub id: String,
     /// Why it was left out.
     pub reason: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use meanshift_track::{Observation, TrackStatus};
+
+    fn observation(x: f64) -> Observation {
+        let c = Point2::new(x, 10.0);
+        Observation {
+            center: Some(c),
+            window: PixelRect::centered_at(c, 9, 9),
+            status: TrackStatus::Tracked,
+            confidence: 1.0,
+        }
+    }
+
+    #[test]
+    fn revised_centres_are_taken_and_their_positions_become_gaps() {
+        let xs = [1.0, 2.0, 3.0, 4.0];
+        let mut capture = Capture {
+            times_s: Vec::new(),
+            ids: vec!["A".into()],
+            centers: vec![xs.iter().map(|&x| Some(Point2::new(x, 10.0))).collect()],
+            positions_m: vec![vec![Some(Point3::new(0.0, 0.0, 1.0)); 4]],
+            static_points_m: Vec::new(),
+            first_projection: RgbImage::new(1, 1),
+            dropped: Vec::new(),
+            produce_s: 0.0,
+            track_s: 0.0,
+            revised_frames: 0,
+        };
+        // The tracker has a fifth frame, and revised the third.
+        let mut track = Track {
+            id: "A".into(),
+            observations: [1.0, 2.0, 30.0, 4.0, 5.0].map(observation).to_vec(),
+        };
+        assert_eq!(
+            take_revisions(std::slice::from_ref(&track), &mut capture),
+            1
+        );
+        assert_eq!(capture.centers[0][2], Some(Point2::new(30.0, 10.0)));
+        assert_eq!(capture.positions_m[0][2], None);
+        assert!(capture.positions_m[0][3].is_some());
+        assert_eq!(
+            capture.centers[0].len(),
+            4,
+            "the new frame is not taken here"
+        );
+        // Nothing revised: nothing changes.
+        track.observations[2] = observation(30.0);
+        assert_eq!(
+            take_revisions(std::slice::from_ref(&track), &mut capture),
+            0
+        );
+    }
 }

@@ -62,6 +62,8 @@ mod joint;
 mod passes;
 mod state;
 mod swaps;
+
+pub use swaps::MAX_REVISED_FRAMES;
 mod track;
 
 use blobs::*;

@@ -28,8 +28,10 @@ const SIGNATURE_AGREE: f64 = 0.9;
 /// Two markers were together (the swap can have happened) when their centres were within
 /// this many windows.
 const TOGETHER_WINDOWS: f64 = 1.5;
-/// How far back the observations are exchanged at most (the swing history's length).
-const MAX_REVISED_FRAMES: usize = 30;
+/// How far back the observations are exchanged at most (the swing history's length): a
+/// caller that reads each frame's result at once sees at most this many earlier frames of a
+/// track change later.
+pub const MAX_REVISED_FRAMES: usize = 30;
 
 impl Tracker {
     /// Keep each marker's signature line, then exchange any pair of markers of one look
