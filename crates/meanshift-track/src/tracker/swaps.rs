@@ -8,15 +8,19 @@
 //! line, kept only while the marker's recent track agrees with it). When over the last
 //! [`SWAP_FRAMES`] frames each of the two tracks lies along the other's line and not along
 //! its own, the two markers' states are exchanged, and their observations since they were
-//! last together are exchanged too (the swap happened there).
+//! last together are exchanged too (the swap happened there). Any two markers that met within
+//! the last [`MAX_REVISED_FRAMES`] frames are compared, not only those whose first-frame
+//! colours match: a marker half hidden on the first frame is measured another colour (on a
+//! tuning seed of the crossing condition, one of a pair by 80 RGB levels).
 
 use super::*;
 use crate::swing::SwingLine;
 
-/// Frames of both tracks a swap is judged on (about half a swing at 30 fps).
-const SWAP_FRAMES: usize = 8;
+/// Frames of both tracks a swap is judged on (a third of a 1.5 Hz swing at 30 fps; 8 took
+/// two frames longer to undo a swap and lost 2 points on the tuning seeds' combined condition).
+const SWAP_FRAMES: usize = 6;
 /// Of those, frames each marker must have been found in.
-const SWAP_MIN_FOUND: usize = 6;
+const SWAP_MIN_FOUND: usize = 4;
 /// The exchanged identities must explain the tracks this much better (ratio of the summed
 /// offsets from the lines, in spreads across them).
 const SWAP_RATIO: f64 = 0.4;
@@ -57,7 +61,9 @@ impl Tracker {
         let n = self.markers.len();
         for i in 0..n {
             for j in i + 1..n {
-                if !same_look(&self.markers[i], &self.markers[j]) {
+                // Only two that met can have swapped (whatever their first-frame colours say:
+                // a marker half hidden on the first frame was measured another colour).
+                if self.last_met(i, j).is_none() {
                     continue;
                 }
                 let (Some(si), Some(sj)) = (self.markers[i].signature, self.markers[j].signature)
@@ -95,6 +101,21 @@ impl Tracker {
             && swap_i + swap_j < SWAP_RATIO * keep
     }
 
+    /// The last frame, at most [`MAX_REVISED_FRAMES`] back, on which markers `i` and `j` were
+    /// within [`TOGETHER_WINDOWS`] windows of each other.
+    fn last_met(&self, i: usize, j: usize) -> Option<usize> {
+        let together =
+            TOGETHER_WINDOWS * window_px(&self.markers[i]).max(window_px(&self.markers[j]));
+        let (oa, ob) = (&self.tracks[i].observations, &self.tracks[j].observations);
+        let len = oa.len().min(ob.len());
+        (len.saturating_sub(MAX_REVISED_FRAMES)..len)
+            .rev()
+            .find(|&f| match (oa[f].center, ob[f].center) {
+                (Some(p), Some(q)) => (p - q).norm() < together,
+                _ => false,
+            })
+    }
+
     /// Exchange what `i` and `j` know of where they are (motion, swing, surroundings), keep
     /// what they are (name, look, home, signature), and exchange their observations since
     /// they were last together.
@@ -113,21 +134,13 @@ impl Tracker {
         std::mem::swap(&mut a.context_level, &mut b.context_level);
         std::mem::swap(&mut a.context_var, &mut b.context_var);
         std::mem::swap(&mut a.gate_var, &mut b.gate_var);
-        let together = TOGETHER_WINDOWS * window_px(a).max(window_px(b));
+        // From the frame after they were last together (the swap happened there).
+        let Some(met) = self.last_met(i, j) else {
+            return;
+        };
         let (ta, tb) = self.tracks.split_at_mut(j);
         let (oa, ob) = (&mut ta[i].observations, &mut tb[0].observations);
-        let len = oa.len().min(ob.len());
-        let oldest = len.saturating_sub(MAX_REVISED_FRAMES);
-        // From the last frame they were together on (or as far back as the recent track
-        // that showed the swap).
-        let from = (oldest..len)
-            .rev()
-            .find(|&f| match (oa[f].center, ob[f].center) {
-                (Some(p), Some(q)) => (p - q).norm() < together,
-                _ => false,
-            })
-            .map_or(len.saturating_sub(SWAP_FRAMES), |f| f + 1);
-        for f in from..len {
+        for f in met + 1..oa.len().min(ob.len()) {
             std::mem::swap(&mut oa[f], &mut ob[f]);
         }
     }
