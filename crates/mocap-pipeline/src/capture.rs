@@ -88,6 +88,24 @@ pub struct Capture {
     pub revised_frames: usize,
 }
 
+impl Capture {
+    /// Nothing captured yet, room for `frames` frame times.
+    fn empty(frames: usize) -> Self {
+        Self {
+            times_s: Vec::with_capacity(frames),
+            ids: Vec::new(),
+            centers: Vec::new(),
+            positions_m: Vec::new(),
+            static_points_m: Vec::new(),
+            first_projection: RgbImage::new(1, 1),
+            dropped: Vec::new(),
+            produce_s: 0.0,
+            track_s: 0.0,
+            revised_frames: 0,
+        }
+    }
+}
+
 /// Run `produce` for frames `0..frames` on worker threads, build each cloud and projection
 /// image there, track and lift in frame order here. `progress(done, total)` is called after
 /// every frame.
@@ -174,18 +192,7 @@ fn consume(
 ) -> Result<Capture> {
     let mut pending: BTreeMap<usize, Received> = BTreeMap::new();
     let mut tracker: Option<Tracker> = None;
-    let mut capture = Capture {
-        times_s: Vec::with_capacity(frames),
-        ids: Vec::new(),
-        centers: Vec::new(),
-        positions_m: Vec::new(),
-        static_points_m: Vec::new(),
-        first_projection: RgbImage::new(1, 1),
-        dropped: Vec::new(),
-        produce_s: 0.0,
-        track_s: 0.0,
-        revised_frames: 0,
-    };
+    let mut capture = Capture::empty(frames);
     let lift = LiftConfig::for_plane(&setup.plane, &setup.calibration.depth_camera);
     let mut scratch = Vec::new();
     let mut still = StillCloud::new();
@@ -335,18 +342,10 @@ mod tests {
     #[test]
     fn revised_centres_are_taken_and_their_positions_become_gaps() {
         let xs = [1.0, 2.0, 3.0, 4.0];
-        let mut capture = Capture {
-            times_s: Vec::new(),
-            ids: vec!["A".into()],
-            centers: vec![xs.iter().map(|&x| Some(Point2::new(x, 10.0))).collect()],
-            positions_m: vec![vec![Some(Point3::new(0.0, 0.0, 1.0)); 4]],
-            static_points_m: Vec::new(),
-            first_projection: RgbImage::new(1, 1),
-            dropped: Vec::new(),
-            produce_s: 0.0,
-            track_s: 0.0,
-            revised_frames: 0,
-        };
+        let mut capture = Capture::empty(0);
+        capture.ids = vec!["A".into()];
+        capture.centers = vec![xs.iter().map(|&x| Some(Point2::new(x, 10.0))).collect()];
+        capture.positions_m = vec![vec![Some(Point3::new(0.0, 0.0, 1.0)); 4]];
         // The tracker has a fifth frame, and revised the third.
         let mut track = Track {
             id: "A".into(),

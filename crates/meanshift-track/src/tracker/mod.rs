@@ -601,3 +601,28 @@ impl Tracker {
         (self.width, self.height)
     }
 }
+
+/// A tracker for unit tests: markers A and B of one red colour, 130 px apart on a gray
+/// 192x64 frame.
+#[cfg(test)]
+fn two_red_markers() -> Result<Tracker> {
+    let frame = RgbImage::from_fn(192, 64, |x, y| {
+        let on = |cx: u32| x.abs_diff(cx) <= 4 && y.abs_diff(30) <= 4;
+        if on(20) || on(150) {
+            image::Rgb([215, 25, 30])
+        } else {
+            image::Rgb([100, 110, 95])
+        }
+    });
+    let inits = [
+        MarkerInit {
+            id: "A".into(),
+            window: PixelRect::new(15, 25, 11, 11),
+        },
+        MarkerInit {
+            id: "B".into(),
+            window: PixelRect::new(145, 25, 11, 11),
+        },
+    ];
+    Tracker::new(TrackerConfig::default(), &frame, None, &inits)
+}

@@ -451,32 +451,11 @@ struct Gate {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use image::Rgb;
-
-    fn frame() -> RgbImage {
-        RgbImage::from_fn(192, 64, |x, y| {
-            let on = |cx: u32| x.abs_diff(cx) <= 4 && y.abs_diff(30) <= 4;
-            if on(20) || on(150) {
-                Rgb([215, 25, 30])
-            } else {
-                Rgb([100, 110, 95])
-            }
-        })
-    }
+    use crate::tracker::two_red_markers;
 
     #[test]
     fn another_markers_home_beyond_ones_reach_is_not_ones_place() -> Result<()> {
-        let inits = [
-            MarkerInit {
-                id: "A".into(),
-                window: PixelRect::new(15, 25, 11, 11),
-            },
-            MarkerInit {
-                id: "B".into(),
-                window: PixelRect::new(145, 25, 11, 11),
-            },
-        ];
-        let mut t = Tracker::new(TrackerConfig::default(), &frame(), None, &inits)?;
+        let mut t = two_red_markers()?;
         // B's home, far beyond anywhere A has been.
         assert!(t.at_another_home(0, Point2::new(151.0, 32.0)));
         // Near A's own home, or nowhere near B's: A's to take.

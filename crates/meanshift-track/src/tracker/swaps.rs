@@ -150,29 +150,11 @@ impl Tracker {
 mod tests {
     use super::*;
     use crate::swing::SwingLine;
-    use image::Rgb;
+    use crate::tracker::two_red_markers;
 
-    /// Two markers of one colour.
+    /// Two markers of one colour, with the lines they are known by.
     fn tracker() -> Result<Tracker> {
-        let frame = RgbImage::from_fn(192, 64, |x, y| {
-            let on = |cx: u32| x.abs_diff(cx) <= 4 && y.abs_diff(30) <= 4;
-            if on(20) || on(150) {
-                Rgb([215, 25, 30])
-            } else {
-                Rgb([100, 110, 95])
-            }
-        });
-        let inits = [
-            MarkerInit {
-                id: "A".into(),
-                window: PixelRect::new(15, 25, 11, 11),
-            },
-            MarkerInit {
-                id: "B".into(),
-                window: PixelRect::new(145, 25, 11, 11),
-            },
-        ];
-        let mut t = Tracker::new(TrackerConfig::default(), &frame, None, &inits)?;
+        let mut t = two_red_markers()?;
         // A swings horizontally about (60, 30), B vertically about (100, 30).
         t.markers[0].signature = Some(SwingLine {
             centre: Point2::new(60.0, 30.0),
