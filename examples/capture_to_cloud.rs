@@ -1,5 +1,5 @@
 //! Turns one frame of a recording (native or TUM folder, Azure Kinect / Orbbec Femto `.mkv`,
-//! RealSense `.bag`) into a textured PLY point cloud.
+//! RealSense or Orbbec `.bag`) into a textured PLY point cloud.
 //!
 //! ```text
 //! cargo run --release --example capture_to_cloud -- <RECORDING> [--frame N] [--calibration FILE] [--out cloud.ply]
@@ -35,7 +35,7 @@ struct Summary {
     bbox_max: [f64; 3],
 }
 
-/// One frame of a recording (native or TUM folder, Azure Kinect .mkv, RealSense .bag) as a
+/// One frame of a recording (native or TUM folder, Azure Kinect .mkv, RealSense/Orbbec .bag) as a
 /// textured PLY point cloud.
 ///
 /// Prints {"points", "width", "height", "bbox_min", "bbox_max"} (metres, depth camera
@@ -46,7 +46,7 @@ struct Summary {
 struct Args {
     /// A native recording (frames.csv + calibration.json), a TUM RGB-D folder (rgb.txt +
     /// depth.txt; TUM's default intrinsics when it has no calibration), an Azure Kinect /
-    /// Orbbec Femto .mkv or a RealSense .bag (calibration read from the file)
+    /// Orbbec Femto .mkv or a RealSense / Orbbec SDK v2 .bag (calibration read from the file)
     #[arg(value_name = "RECORDING")]
     dir: Option<PathBuf>,
     /// Frame index

@@ -36,7 +36,7 @@ const PROGRAM: &str = "pipeline";
 ///
 /// With no recording: the synthetic twin (a tree with known dynamics, filmed by a simulated
 /// Kinect V2), measured and compared with the truth. With --recording: a recording in the
-/// native or TUM layout, an Azure Kinect .mkv or a RealSense .bag (docs/recording-format.md)
+/// native or TUM layout, an Azure Kinect .mkv or a RealSense / Orbbec .bag (docs/recording-format.md)
 /// and the markers of its markers file
 /// (docs/capture.md).
 #[derive(Parser, Debug)]
@@ -50,7 +50,7 @@ struct Args {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
     /// A recording to measure instead of the twin: a folder (native or TUM layout), an Azure
-    /// Kinect / Orbbec Femto .mkv or a RealSense .bag
+    /// Kinect / Orbbec Femto .mkv or a RealSense / Orbbec SDK v2 .bag
     #[arg(
         long,
         value_name = "DIR",

@@ -17,6 +17,9 @@
 //! `.../aligned_depth_to_color/image_raw`, `.../color/image_raw` and the colour
 //! `camera_info`) is read as depth already registered to colour, in millimetres.
 //!
+//! Orbbec SDK v2's recorder writes ROS 1 bags too: they are indexed here and their layout
+//! (topics, profile and property messages) is read by `bag_orbbec.rs`.
+//!
 //! Not read: IMU, IR, pose streams, the bag's other options and metadata. A bag without an
 //! index (a recording cut short) is refused: `rosbag reindex` repairs it.
 
@@ -24,12 +27,13 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use image::RgbImage;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use rosbag::{ChunkRecord, IndexRecord, MessageRecord, RosBag};
 
 use crate::bag_chunk::check_chunk;
+use crate::bag_msgs::{ImageMsg, Reader, parse_camera_info, parse_image, parse_transform};
+use crate::bag_orbbec::{self, ColorCodec};
 use crate::calibration::{Calibration, Extrinsics, RegistrationModel};
-use crate::camera::{CameraModel, Distortion};
+use crate::depth::decode_color_image;
 use crate::depth::{DEPTH_UNIT_MM_M, DepthImage};
 use crate::error::{KinectError, Result};
 use crate::pixels::{RawColor, to_rgb};
@@ -50,13 +54,14 @@ struct MsgRef {
     record: usize,
 }
 
-/// An opened RealSense bag.
+/// An opened RealSense or Orbbec bag.
 #[derive(Debug, Clone)]
 pub(crate) struct BagRecording {
     frames: Vec<(MsgRef, MsgRef)>,
     times_ns: Vec<(u64, u64)>,
     unpaired_depth: usize,
     calibration: Calibration,
+    flavour: Flavour,
 }
 
 /// True when the file starts with the ROS bag 2.0 magic line.
@@ -112,186 +117,6 @@ fn check_bag_header(path: &Path) -> Result<()> {
     }
 }
 
-/// Little-endian ROS 1 serialisation, every read bounds-checked.
-struct Reader<'a> {
-    data: &'a [u8],
-    pos: usize,
-    path: &'a Path,
-}
-
-impl<'a> Reader<'a> {
-    fn new(data: &'a [u8], path: &'a Path) -> Self {
-        Self { data, pos: 0, path }
-    }
-
-    fn left(&self) -> usize {
-        self.data.len() - self.pos
-    }
-
-    fn bytes(&mut self, n: usize) -> Result<&'a [u8]> {
-        let end = self.pos.checked_add(n).filter(|&e| e <= self.data.len());
-        let Some(end) = end else {
-            return Err(KinectError::format(
-                self.path,
-                format!(
-                    "a message is cut off: {n} bytes asked for at byte {} of {}",
-                    self.pos,
-                    self.data.len()
-                ),
-            ));
-        };
-        let out = &self.data[self.pos..end];
-        self.pos = end;
-        Ok(out)
-    }
-
-    fn array<const N: usize>(&mut self) -> Result<[u8; N]> {
-        let b = self.bytes(N)?;
-        let mut out = [0u8; N];
-        out.copy_from_slice(b);
-        Ok(out)
-    }
-
-    fn u8(&mut self) -> Result<u8> {
-        Ok(self.array::<1>()?[0])
-    }
-
-    fn u32(&mut self) -> Result<u32> {
-        Ok(u32::from_le_bytes(self.array()?))
-    }
-
-    fn f64(&mut self) -> Result<f64> {
-        Ok(f64::from_le_bytes(self.array()?))
-    }
-
-    fn f32(&mut self) -> Result<f32> {
-        Ok(f32::from_le_bytes(self.array()?))
-    }
-
-    fn string(&mut self) -> Result<&'a str> {
-        let n = self.u32()? as usize;
-        let b = self.bytes(n)?;
-        std::str::from_utf8(b)
-            .map_err(|_| KinectError::format(self.path, "a message string is not UTF-8"))
-    }
-
-    fn f64s(&mut self, n: usize) -> Result<Vec<f64>> {
-        (0..n).map(|_| self.f64()).collect()
-    }
-
-    /// `std_msgs/Header`: the stamp in nanoseconds.
-    fn header(&mut self) -> Result<u64> {
-        let _seq = self.u32()?;
-        let sec = u64::from(self.u32()?);
-        let nsec = u64::from(self.u32()?);
-        let _frame = self.string()?;
-        Ok(sec * 1_000_000_000 + nsec)
-    }
-}
-
-/// A `sensor_msgs/Image`, borrowed.
-struct ImageMsg<'a> {
-    stamp_ns: u64,
-    height: u32,
-    width: u32,
-    encoding: &'a str,
-    big_endian: bool,
-    step: u32,
-    data: &'a [u8],
-}
-
-fn parse_image<'a>(bytes: &'a [u8], path: &'a Path) -> Result<ImageMsg<'a>> {
-    let mut r = Reader::new(bytes, path);
-    let stamp_ns = r.header()?;
-    let height = r.u32()?;
-    let width = r.u32()?;
-    let encoding = r.string()?;
-    let big_endian = r.u8()? != 0;
-    let step = r.u32()?;
-    let n = r.u32()? as usize;
-    let data = r.bytes(n)?;
-    Ok(ImageMsg {
-        stamp_ns,
-        height,
-        width,
-        encoding,
-        big_endian,
-        step,
-        data,
-    })
-}
-
-/// A `sensor_msgs/CameraInfo` as a camera model.
-fn parse_camera_info(bytes: &[u8], path: &Path, what: &str) -> Result<CameraModel> {
-    let bad = |w: String| KinectError::calibration(path, format!("{what} camera_info: {w}"));
-    let mut r = Reader::new(bytes, path);
-    r.header()?;
-    let height = r.u32()?;
-    let width = r.u32()?;
-    let model = r.string()?.to_owned();
-    let n = r.u32()? as usize;
-    if n > r.left() / 8 {
-        return Err(bad(format!(
-            "{n} distortion coefficients in a short message"
-        )));
-    }
-    let d = r.f64s(n)?;
-    let k = r.f64s(9)?;
-    let known = matches!(
-        model.as_str(),
-        "Brown Conrady" | "plumb_bob" | "rational_polynomial"
-    );
-    if !known && d.iter().any(|&c| c != 0.0) {
-        return Err(KinectError::Unsupported {
-            path: path.to_path_buf(),
-            what: format!(
-                "{what} camera_info: distortion model {model:?} with coefficients {d:?} (only \
-                 Brown–Conrady / plumb_bob / rational_polynomial, or zero coefficients)"
-            ),
-        });
-    }
-    let distortion = if d.iter().all(|&c| c == 0.0) {
-        Distortion::default()
-    } else {
-        let take = d.len().min(8);
-        let list = if take > 5 && take < 8 {
-            &d[..5]
-        } else {
-            &d[..take]
-        };
-        Distortion::from_opencv(list).map_err(|e| bad(e.to_string()))?
-    };
-    let camera = CameraModel {
-        width,
-        height,
-        fx: k[0],
-        fy: k[4],
-        cx: k[2],
-        cy: k[5],
-        distortion,
-    };
-    camera.validate().map_err(|e| bad(e.to_string()))?;
-    Ok(camera)
-}
-
-/// A `geometry_msgs/Transform` as an isometry.
-fn parse_transform(bytes: &[u8], path: &Path, what: &str) -> Result<Isometry3<f64>> {
-    let mut r = Reader::new(bytes, path);
-    let v = r.f64s(7)?;
-    let q = Quaternion::new(v[6], v[3], v[4], v[5]);
-    let norm = q.norm();
-    if !(v.iter().all(|x| x.is_finite()) && (norm - 1.0).abs() < 1e-3) {
-        return Err(KinectError::calibration(
-            path,
-            format!("{what} tf: not a rigid transform: {v:?}"),
-        ));
-    }
-    Ok(Isometry3::from_parts(
-        Translation3::new(v[0], v[1], v[2]),
-        UnitQuaternion::from_quaternion(q),
-    ))
-}
-
 /// The topics of one RealSense stream (`Depth_0`, `Color_0`) in the bag.
 #[derive(Debug, Default)]
 struct Stream {
@@ -322,6 +147,95 @@ fn classify(topic: &str) -> Option<(&'static str, &'static str)> {
     Some((kind, what))
 }
 
+/// Which recorder's layout a bag has, with what that layout needs to read its frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Flavour {
+    /// librealsense's recorder, or a ROS driver's aligned depth (`aligned`).
+    RealSense { aligned: bool },
+    /// Orbbec SDK v2's recorder; colour decoded as its profile says (by the image's
+    /// encoding name when the profile is missing).
+    Orbbec(Option<ColorCodec>),
+}
+
+/// The image connections of a bag and the connections whose messages its calibration needs.
+struct BagLayout {
+    flavour: Flavour,
+    images: (u32, u32),
+    depth: Stream,
+    color: Stream,
+    units: Option<u32>,
+    orbbec: Option<bag_orbbec::Topics>,
+}
+
+/// Find the layout among a bag's `(id, topic, type)` connections.
+fn find_layout(path: &Path, connections: &[(u32, String, String)]) -> Result<BagLayout> {
+    let mut depth = Stream::default();
+    let mut color = Stream::default();
+    let mut units = None;
+    for (id, topic, _) in connections {
+        if topic.ends_with("/option/Depth Units/value") {
+            units = Some(*id);
+        }
+        if let Some((kind, what)) = classify(topic) {
+            let s = if kind == "depth" {
+                &mut depth
+            } else {
+                &mut color
+            };
+            let slot = match what {
+                "image" => &mut s.image,
+                "info" => &mut s.info,
+                _ => &mut s.tf,
+            };
+            slot.get_or_insert(*id);
+        }
+    }
+    if let (Some(d), Some(c)) = (depth.image, color.image) {
+        return Ok(BagLayout {
+            flavour: Flavour::RealSense { aligned: false },
+            images: (d, c),
+            depth,
+            color,
+            units,
+            orbbec: None,
+        });
+    }
+    if let Some(t) = bag_orbbec::topics(connections) {
+        return Ok(BagLayout {
+            flavour: Flavour::Orbbec(None),
+            images: (t.depth_image, t.color_image),
+            depth,
+            color,
+            units,
+            orbbec: Some(t),
+        });
+    }
+    // Not a recorder's own layout: a ROS driver's aligned depth (realsense-ros and others).
+    let found = aligned_topics(connections).ok_or_else(|| {
+        KinectError::format(
+            path,
+            format!(
+                "no RealSense depth and colour image topics (/device_0/sensor_N/Depth_0/image/\
+                 data, .../Color_0/image/data), no Orbbec SDK v2 ones ({}, {}) and no ROS \
+                 driver's .../aligned_depth_to_color/image_raw with its colour image and \
+                 camera_info; topics: {:?}",
+                bag_orbbec::DEPTH_TOPIC,
+                bag_orbbec::COLOR_TOPIC,
+                connections.iter().map(|c| &c.1).collect::<Vec<_>>()
+            ),
+        )
+    })?;
+    color.info = Some(found.2);
+    Ok(BagLayout {
+        flavour: Flavour::RealSense { aligned: true },
+        images: (found.0, found.1),
+        depth,
+        color,
+        units,
+        orbbec: None,
+    })
+}
+
 impl BagRecording {
     /// Index a bag: its connections, calibration messages (unless a calibration is
     /// `given`) and where each image message is.
@@ -329,66 +243,32 @@ impl BagRecording {
         check_bag_header(path)?;
         let bag = RosBag::new(path).map_err(|e| KinectError::io(path, e))?;
         let rosbag_error = |e: rosbag::Error| KinectError::format(path, format!("ROS bag: {e}"));
-        let mut depth = Stream::default();
-        let mut color = Stream::default();
-        let mut units = None;
         let mut connections = Vec::new();
         let mut chunks = Vec::new();
         for record in bag.index_records() {
             match record.map_err(rosbag_error)? {
                 IndexRecord::Connection(c) => {
                     connections.push((c.id, c.topic.to_owned(), c.tp.to_owned()));
-                    if c.topic.ends_with("/option/Depth Units/value") {
-                        units = Some(c.id);
-                    }
-                    if let Some((kind, what)) = classify(c.topic) {
-                        let s = if kind == "depth" {
-                            &mut depth
-                        } else {
-                            &mut color
-                        };
-                        let slot = match what {
-                            "image" => &mut s.image,
-                            "info" => &mut s.info,
-                            _ => &mut s.tf,
-                        };
-                        slot.get_or_insert(c.id);
-                    }
                 }
                 IndexRecord::ChunkInfo(info) => chunks.push(info.chunk_pos),
                 IndexRecord::IndexData(_) => {}
             }
         }
-        // Not the SDK's own layout: a ROS driver's aligned depth (realsense-ros and others).
-        let aligned = if depth.image.is_none() || color.image.is_none() {
-            let found = aligned_topics(&connections).ok_or_else(|| {
-                KinectError::format(
-                    path,
-                    format!(
-                        "no RealSense depth and colour image topics \
-                         (/device_0/sensor_N/Depth_0/image/data, .../Color_0/image/data) and \
-                         no ROS driver's .../aligned_depth_to_color/image_raw with its colour \
-                         image and camera_info; topics: {:?}",
-                        connections.iter().map(|c| &c.1).collect::<Vec<_>>()
-                    ),
-                )
-            })?;
-            depth.image = Some(found.0);
-            color.image = Some(found.1);
-            color.info = Some(found.2);
-            true
-        } else {
-            false
-        };
-        let (Some(depth_image), Some(color_image)) = (depth.image, color.image) else {
-            return Err(KinectError::format(
-                path,
-                "no depth or colour topic (internal)",
-            ));
-        };
+        let mut layout = find_layout(path, &connections)?;
         chunks.sort_unstable();
-        let wanted = [depth.info, color.info, depth.tf, color.tf, units];
-        let scan = scan_chunks(&bag, path, &chunks, (depth_image, color_image), &wanted)?;
+        let (depth, color) = (&layout.depth, &layout.color);
+        let orbbec = layout.orbbec;
+        let wanted = [
+            depth.info,
+            color.info,
+            depth.tf,
+            color.tf,
+            layout.units,
+            orbbec.and_then(|t| t.depth_profile),
+            orbbec.and_then(|t| t.color_profile),
+        ];
+        let every = orbbec.and_then(|t| t.property);
+        let scan = scan_chunks(&bag, path, &chunks, layout.images, &wanted, every)?;
         let (mut depth_msgs, mut color_msgs, small) = (scan.depth, scan.color, scan.small);
         let pairs = pair_by_time(&mut depth_msgs, &mut color_msgs);
         if pairs.is_empty() {
@@ -409,17 +289,39 @@ impl BagRecording {
             .iter()
             .map(|&(d, c)| (depth_msgs[d].1.1, color_msgs[c].1.1))
             .collect();
-        let calibration = match given {
-            Some(c) => c,
-            None if aligned => aligned_calibration(path, &small, color.info)?,
-            None => bag_calibration(path, &small, &depth, &color, units)?,
+        let calibration = match (layout.flavour, orbbec) {
+            (Flavour::Orbbec(_), Some(t)) => {
+                let message = |id: Option<u32>| id.and_then(|id| small.get(&id)).map(Vec::as_slice);
+                let decoded = bag_orbbec::decode(
+                    path,
+                    message(t.depth_profile),
+                    message(t.color_profile),
+                    &scan.every,
+                    given,
+                )?;
+                layout.flavour = Flavour::Orbbec(decoded.color);
+                decoded.calibration
+            }
+            _ => match given {
+                Some(c) => c,
+                None if layout.flavour == (Flavour::RealSense { aligned: true }) => {
+                    aligned_calibration(path, &small, color.info)?
+                }
+                None => bag_calibration(path, &small, depth, color, layout.units)?,
+            },
         };
         Ok(Self {
             frames,
             times_ns,
             unpaired_depth: depth_msgs.len() - pairs.len(),
             calibration,
+            flavour: layout.flavour,
         })
+    }
+
+    /// Which recorder's layout the bag has.
+    pub fn flavour(&self) -> Flavour {
+        self.flavour
     }
 }
 
@@ -446,62 +348,103 @@ impl Container for BagRecording {
         let label = |what: &str| PathBuf::from(format!("{} ({what} of frame {i})", path.display()));
         let (color_label, depth_label) = (label("colour"), label("depth"));
         let color = with_message(&bag, path, c, &color_label, |bytes| {
-            let m = parse_image(bytes, &color_label)?;
-            let layout = color_layout(m.encoding).ok_or_else(|| KinectError::Unsupported {
-                path: color_label.clone(),
-                what: format!("colour encoding {:?}", m.encoding),
-            })?;
-            to_rgb(
+            self.decode_color(&parse_image(bytes, &color_label)?, &color_label)
+        })?;
+        let depth = with_message(&bag, path, d, &depth_label, |bytes| {
+            let m = parse_image(bytes, &depth_label)?;
+            self.decode_depth(&m, &depth_label, depth_unit_m)
+        })?;
+        Ok((color, depth))
+    }
+}
+
+impl BagRecording {
+    /// A colour image: by its encoding name (RealSense, ROS), or as the Orbbec profile says.
+    fn decode_color(&self, m: &ImageMsg<'_>, label: &Path) -> Result<RgbImage> {
+        let codec = match self.flavour {
+            Flavour::RealSense { .. } => color_layout(m.encoding).map(ColorCodec::Raw),
+            Flavour::Orbbec(Some(codec)) => Some(codec),
+            Flavour::Orbbec(None) => bag_orbbec::color_codec_by_encoding(m.encoding),
+        };
+        match codec {
+            Some(ColorCodec::Raw(layout)) => to_rgb(
                 layout,
                 m.width,
                 m.height,
                 Some(m.step as usize),
                 m.data,
-                &color_label,
-            )
-        })?;
-        let depth = with_message(&bag, path, d, &depth_label, |bytes| {
-            let m = parse_image(bytes, &depth_label)?;
-            if !matches!(m.encoding.to_ascii_lowercase().as_str(), "16uc1" | "mono16") {
-                return Err(KinectError::Unsupported {
-                    path: depth_label.clone(),
-                    what: format!("depth encoding {:?} (16UC1 or mono16 are read)", m.encoding),
-                });
+                label,
+            ),
+            Some(ColorCodec::Jpeg) => {
+                let image = decode_color_image(m.data, label)?;
+                if image.dimensions() != (m.width, m.height) {
+                    return Err(KinectError::format(
+                        label,
+                        format!(
+                            "the JPEG is {:?} px, the message says {}x{}",
+                            image.dimensions(),
+                            m.width,
+                            m.height
+                        ),
+                    ));
+                }
+                Ok(image)
             }
-            let (w, h) = (m.width as usize, m.height as usize);
-            let step = m.step as usize;
-            let rows_fit = step >= 2 * w && h.checked_mul(step) == Some(m.data.len());
-            if !rows_fit {
-                return Err(KinectError::format(
-                    &depth_label,
-                    format!(
-                        "{}x{} px with a {step}-byte step does not fit {} bytes",
-                        m.width,
-                        m.height,
-                        m.data.len()
-                    ),
-                ));
-            }
-            let mut values = Vec::with_capacity(w * h);
-            for row in m.data.chunks_exact(step) {
-                values.extend(row[..2 * w].chunks_exact(2).map(|p| {
-                    if m.big_endian {
-                        u16::from_be_bytes([p[0], p[1]])
-                    } else {
-                        u16::from_le_bytes([p[0], p[1]])
-                    }
-                }));
-            }
-            DepthImage::new(m.width, m.height, depth_unit_m, values)
-        })?;
-        Ok((color, depth))
+            None => Err(KinectError::Unsupported {
+                path: label.to_path_buf(),
+                what: format!("colour encoding {:?}", m.encoding),
+            }),
+        }
+    }
+
+    /// A 16-bit depth image. RealSense and ROS name it `16UC1`/`mono16`; an Orbbec depth
+    /// stream's format was checked against its profile at open, and its rows must hold
+    /// 2 bytes per pixel.
+    fn decode_depth(
+        &self,
+        m: &ImageMsg<'_>,
+        label: &Path,
+        depth_unit_m: f64,
+    ) -> Result<DepthImage> {
+        let named = matches!(m.encoding.to_ascii_lowercase().as_str(), "16uc1" | "mono16");
+        if !named && matches!(self.flavour, Flavour::RealSense { .. }) {
+            return Err(KinectError::Unsupported {
+                path: label.to_path_buf(),
+                what: format!("depth encoding {:?} (16UC1 or mono16 are read)", m.encoding),
+            });
+        }
+        let (w, h) = (m.width as usize, m.height as usize);
+        let step = m.step as usize;
+        let rows_fit = step >= 2 * w && h.checked_mul(step) == Some(m.data.len());
+        if !rows_fit {
+            return Err(KinectError::format(
+                label,
+                format!(
+                    "{}x{} px with a {step}-byte step does not fit {} bytes (16-bit depth)",
+                    m.width,
+                    m.height,
+                    m.data.len()
+                ),
+            ));
+        }
+        let mut values = Vec::with_capacity(w * h);
+        for row in m.data.chunks_exact(step) {
+            values.extend(row[..2 * w].chunks_exact(2).map(|p| {
+                if m.big_endian {
+                    u16::from_be_bytes([p[0], p[1]])
+                } else {
+                    u16::from_le_bytes([p[0], p[1]])
+                }
+            }));
+        }
+        DepthImage::new(m.width, m.height, depth_unit_m, values)
     }
 }
 
 /// The pixel layout of a colour image's ROS encoding. ROS names UYVY `yuv422` and YUYV
 /// `yuv422_yuy2`; librealsense writes its UYVY as `yuv422` and its YUYV as `YUYV` (the
 /// format's own name), so names are compared without case.
-fn color_layout(encoding: &str) -> Option<RawColor> {
+pub(crate) fn color_layout(encoding: &str) -> Option<RawColor> {
     Some(match encoding.to_ascii_lowercase().as_str() {
         "rgb8" => RawColor::Rgb8,
         "bgr8" => RawColor::Bgr8,
@@ -539,12 +482,18 @@ fn with_message<T>(
 }
 
 /// What one pass over a bag's chunks finds: the depth and colour image messages (time in ns
-/// as `f64` for pairing, where, time in ns) and the first message of each wanted connection.
+/// as `f64` for pairing, where, time in ns), the first message of each wanted connection and
+/// every message of one more (Orbbec's properties).
 struct Scan {
     depth: Vec<(f64, (MsgRef, u64))>,
     color: Vec<(f64, (MsgRef, u64))>,
     small: HashMap<u32, Vec<u8>>,
+    every: Vec<Vec<u8>>,
 }
+
+/// Most messages kept from the connection read in full (Orbbec's recorder writes a few dozen
+/// properties, each a few bytes to a few KiB).
+const MAX_EVERY_MESSAGES: usize = 10_000;
 
 fn scan_chunks(
     bag: &RosBag,
@@ -552,12 +501,14 @@ fn scan_chunks(
     chunks: &[u64],
     (depth_image, color_image): (u32, u32),
     wanted: &[Option<u32>],
+    every: Option<u32>,
 ) -> Result<Scan> {
     let rosbag_error = |e: rosbag::Error| KinectError::format(path, format!("ROS bag: {e}"));
     let mut scan = Scan {
         depth: Vec::new(),
         color: Vec::new(),
         small: HashMap::new(),
+        every: Vec::new(),
     };
     let mut iter = bag.chunk_records();
     for &chunk_pos in chunks {
@@ -595,6 +546,14 @@ fn scan_chunks(
                     ));
                 }
                 list.push((t as f64, (at, t)));
+            } else if every == Some(m.conn_id) {
+                if scan.every.len() >= MAX_EVERY_MESSAGES {
+                    return Err(KinectError::format(
+                        path,
+                        format!("more than {MAX_EVERY_MESSAGES} property messages"),
+                    ));
+                }
+                scan.every.push(m.data.to_vec());
             } else if wanted.contains(&Some(m.conn_id)) {
                 scan.small
                     .entry(m.conn_id)

@@ -55,6 +55,8 @@
 
 mod bag;
 mod bag_chunk;
+mod bag_msgs;
+mod bag_orbbec;
 mod calibration;
 mod camera;
 mod cloud;

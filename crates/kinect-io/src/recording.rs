@@ -11,7 +11,9 @@
 //! - **Azure Kinect / Orbbec Femto `.mkv`** (`k4arecorder`'s Matroska layout): a file,
 //!   calibration from its `calibration.json` attachment;
 //! - **Intel RealSense `.bag`** (ROS 1, librealsense's topics): a file, calibration from its
-//!   `camera_info`, `tf` and depth-unit messages.
+//!   `camera_info`, `tf` and depth-unit messages;
+//! - **Orbbec SDK v2 `.bag`** (ROS 1, the SDK recorder's `/cam/...` topics): a file,
+//!   calibration from its stream-profile and property messages.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -20,7 +22,7 @@ use std::sync::Arc;
 
 use image::RgbImage;
 
-use crate::bag::{BagRecording, is_rosbag};
+use crate::bag::{BagRecording, Flavour, is_rosbag};
 use crate::calibration::Calibration;
 use crate::depth::{DepthImage, read_color_image, read_depth_image, write_depth_png};
 use crate::error::{KinectError, Result};
@@ -46,8 +48,10 @@ pub enum Layout {
     Tum,
     /// An Azure Kinect or Orbbec Femto Matroska recording (a `.mkv` file).
     AzureKinect,
-    /// An Intel RealSense ROS 1 bag (a `.bag` file).
+    /// An Intel RealSense ROS 1 bag (a `.bag` file; also a ROS driver's aligned depth).
     RealSense,
+    /// An Orbbec SDK v2 ROS 1 bag (a `.bag` file from OrbbecViewer or the SDK's recorder).
+    Orbbec,
 }
 
 /// Where one frame's files are.
@@ -76,7 +80,8 @@ pub struct Frame {
     pub depth: DepthImage,
 }
 
-/// A camera's container file, indexed at open (Azure Kinect `.mkv`, RealSense `.bag`).
+/// A camera's container file, indexed at open (Azure Kinect `.mkv`, RealSense or Orbbec
+/// `.bag`).
 pub(crate) trait Container: std::fmt::Debug + Send + Sync {
     /// The calibration the file records (or the one the caller gave).
     fn calibration(&self) -> &Calibration;
@@ -183,7 +188,11 @@ impl Recording {
             (Layout::AzureKinect, Arc::new(k4a))
         } else if is_rosbag(path) {
             let bag = BagRecording::open(path, calibration)?;
-            (Layout::RealSense, Arc::new(bag))
+            let layout = match bag.flavour() {
+                Flavour::RealSense { .. } => Layout::RealSense,
+                Flavour::Orbbec(_) => Layout::Orbbec,
+            };
+            (layout, Arc::new(bag))
         } else {
             return Err(KinectError::UnknownLayout {
                 path: path.to_path_buf(),
