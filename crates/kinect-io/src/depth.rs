@@ -228,6 +228,9 @@ pub fn decode_color_image(bytes: &[u8], path: &Path) -> Result<RgbImage> {
     {
         return Err(KinectError::format(path, format!("corrupt PNG: {what}")));
     }
+    // A UVC camera's MJPEG frame may leave out its Huffman tables (the standard ones).
+    let with_tables = crate::mjpeg::with_standard_tables(bytes);
+    let bytes = with_tables.as_deref().unwrap_or(bytes);
     let decoded = image::load_from_memory(bytes).map_err(|e| image_error(path, e))?;
     use image::DynamicImage as D;
     match decoded {

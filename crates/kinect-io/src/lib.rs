@@ -65,6 +65,7 @@ mod ebml;
 mod error;
 mod freenect2;
 mod k4a;
+mod mjpeg;
 mod occlusion;
 mod opencv_yaml;
 mod pcd;
