@@ -33,7 +33,9 @@
 //!    goes on.
 //! 5. **Swaps undone**: two markers of one look (colour models) whose last frames each run
 //!    along the swing line the other is known by, and not their own, are exchanged, with
-//!    their observations since they last met (`tracker::swaps`). The frames between the swap
+//!    their observations since they last met (`tracker::swaps`); so are two where one track
+//!    runs along the other's line, moving and far from its own, while the other's track is
+//!    elsewhere (it took the other marker where they met). The frames between the swap
 //!    and its repair are revised in [`Tracker::tracks`]: a caller that reads a frame's
 //!    result at once may see up to 30 earlier frames change later.
 //!

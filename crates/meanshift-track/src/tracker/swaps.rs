@@ -12,6 +12,15 @@
 //! the last [`MAX_REVISED_FRAMES`] frames are compared, not only those whose first-frame
 //! colours match: a marker half hidden on the first frame is measured another colour (on a
 //! tuning seed of the crossing condition, one of a pair by 80 RGB levels).
+//!
+//! One track can also take the other marker without a swap: where they met, `A`'s track
+//! went with `B`'s marker while `B`'s track stayed behind (half hidden, or on a look-alike).
+//! When `A`'s recent track runs along `B`'s line, moving, far from its own line, and `B`'s
+//! track is elsewhere, the two are exchanged the same way: `B` is where `A`'s track is.
+//!
+//! A signature is only refined by a line along the same direction that is about as tight
+//! and centred on it: a track drifting onto another marker's path fits a wider or shifted
+//! line, and letting it replace the signature would make the other path look like its own.
 
 use super::*;
 use crate::swing::SwingLine;
@@ -29,13 +38,32 @@ const SWAP_MAX_OFFSET: f64 = 1.5;
 /// A marker's new swing line replaces its signature when their directions agree this well
 /// (|cos| of the angle between their normals; 0.9 is 26°).
 const SIGNATURE_AGREE: f64 = 0.9;
+/// ... and its spread across has not grown by more than this factor.
+const SIGNATURE_MAX_GROWTH: f64 = 1.25;
 /// Two markers were together (the swap can have happened) when their centres were within
 /// this many windows.
 const TOGETHER_WINDOWS: f64 = 1.5;
+/// A track taken over by another marker lies at least this far from its own line (mean
+/// offset over the last [`SWAP_FRAMES`] frames, spreads): well away from where the lines
+/// cross, where a track can be along both.
+const STOLEN_OWN_OFFSET: f64 = 4.0;
+/// ... and moves along the other's line by at least this many windows over those frames (a
+/// still look-alike on that line is not the other marker).
+const STOLEN_MIN_TRAVEL_WINDOWS: f64 = 0.5;
+
 /// How far back the observations are exchanged at most (the swing history's length): a
 /// caller that reads each frame's result at once sees at most this many earlier frames of a
 /// track change later.
 pub const MAX_REVISED_FRAMES: usize = 30;
+
+/// Whether a marker's new swing `line` may replace its `signature`: along the same
+/// direction, about as tight, and centred on the old line (a track that drifted onto another
+/// marker's path fits a wider or shifted line).
+fn refines(signature: &SwingLine, line: &SwingLine) -> bool {
+    signature.normal.dot(&line.normal).abs() >= SIGNATURE_AGREE
+        && line.sigma_px <= SIGNATURE_MAX_GROWTH * signature.sigma_px
+        && signature.offset(line.centre) <= 1.0
+}
 
 impl Tracker {
     /// Keep each marker's signature line, then exchange any pair of markers of one look
@@ -49,13 +77,10 @@ impl Tracker {
             if !m.last_status.found() {
                 continue;
             }
-            if let Some(line) = m.swing.line() {
-                let agrees = m
-                    .signature
-                    .is_none_or(|s| s.normal.dot(&line.normal).abs() >= SIGNATURE_AGREE);
-                if agrees {
-                    m.signature = Some(line);
-                }
+            if let Some(line) = m.swing.line()
+                && m.signature.is_none_or(|s| refines(&s, &line))
+            {
+                m.signature = Some(line);
             }
         }
         let n = self.markers.len();
@@ -70,24 +95,29 @@ impl Tracker {
                 else {
                     continue;
                 };
-                if self.swapped(i, j, si, sj) {
+                if self.swapped(i, j, si, sj)
+                    || self.stolen(i, j, si, sj)
+                    || self.stolen(j, i, sj, si)
+                {
                     self.exchange(i, j);
                 }
             }
         }
     }
 
+    /// Where marker `k` was found in the last [`SWAP_FRAMES`] frames.
+    fn recent_found(&self, k: usize) -> Vec<Point2<f64>> {
+        let obs = &self.tracks[k].observations;
+        obs[obs.len().saturating_sub(SWAP_FRAMES)..]
+            .iter()
+            .filter(|o| o.status.found())
+            .filter_map(|o| o.center)
+            .collect()
+    }
+
     /// Whether the recent tracks of `i` and `j` lie along each other's lines, not their own.
     fn swapped(&self, i: usize, j: usize, si: SwingLine, sj: SwingLine) -> bool {
-        let recent = |k: usize| -> Vec<Point2<f64>> {
-            let obs = &self.tracks[k].observations;
-            obs[obs.len().saturating_sub(SWAP_FRAMES)..]
-                .iter()
-                .filter(|o| o.status.found())
-                .filter_map(|o| o.center)
-                .collect()
-        };
-        let (pi, pj) = (recent(i), recent(j));
+        let (pi, pj) = (self.recent_found(i), self.recent_found(j));
         if pi.len() < SWAP_MIN_FOUND || pj.len() < SWAP_MIN_FOUND {
             return false;
         }
@@ -99,6 +129,33 @@ impl Tracker {
         swap_i <= SWAP_MAX_OFFSET
             && swap_j <= SWAP_MAX_OFFSET
             && swap_i + swap_j < SWAP_RATIO * keep
+    }
+
+    /// Whether `i`'s recent track has followed `j`'s marker: it runs along `j`'s line, moving,
+    /// far from its own line, while `j`'s track is elsewhere (a marker that took the other's
+    /// marker where they met, whose partner's track was left behind, half hidden or on a
+    /// look-alike, rather than on `i`'s marker: not a swap, but `j`'s marker is where `i`'s
+    /// track is).
+    fn stolen(&self, i: usize, j: usize, si: SwingLine, sj: SwingLine) -> bool {
+        let pi = self.recent_found(i);
+        let (Some(&first), Some(&last)) = (pi.first(), pi.last()) else {
+            return false;
+        };
+        if pi.len() < SWAP_MIN_FOUND {
+            return false;
+        }
+        let mean =
+            |line: &SwingLine| pi.iter().map(|&p| line.offset(p)).sum::<f64>() / pi.len() as f64;
+        let window = window_px(&self.markers[j]);
+        let apart = self.tracks[j]
+            .observations
+            .last()
+            .and_then(|o| o.center)
+            .is_none_or(|c| (c - last).norm() > window);
+        mean(&sj) <= SWAP_MAX_OFFSET
+            && mean(&si) >= STOLEN_OWN_OFFSET
+            && (last - first).norm() >= STOLEN_MIN_TRAVEL_WINDOWS * window
+            && apart
     }
 
     /// The last frame, at most [`MAX_REVISED_FRAMES`] back, on which markers `i` and `j` were
@@ -231,6 +288,86 @@ mod tests {
             Some(Point2::new(60.0, 30.0))
         );
         Ok(())
+    }
+
+    /// Frames 1-3 together; then 8 frames with A moving down B's line below the lines'
+    /// crossing (`moving`) or still there, while B's track stays behind on its own line.
+    fn run_taken(moving: bool) -> Result<(Tracker, Vec<Option<Point2<f64>>>)> {
+        let mut t = tracker()?;
+        for _ in 0..3 {
+            push(&mut t, Point2::new(78.0, 30.0), Point2::new(84.0, 30.0));
+        }
+        for k in 0..8 {
+            let step = if moving { 3.0 * f64::from(k) } else { 0.0 };
+            push(
+                &mut t,
+                Point2::new(100.5, 40.0 + step),
+                Point2::new(100.0, 8.0),
+            );
+        }
+        let before = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        t.repair_swaps();
+        Ok((t, before))
+    }
+
+    #[test]
+    fn a_track_that_took_the_other_marker_is_given_to_it() -> Result<()> {
+        let (t, before) = run_taken(true)?;
+        let b = &t.tracks[1].observations;
+        // B now has what A's track followed, from the frame after they met.
+        for (f, o) in b.iter().enumerate().skip(4) {
+            assert_eq!(o.center, before[f], "frame {f}");
+        }
+        assert!(
+            t.tracks[0].observations[4..]
+                .iter()
+                .all(|o| o.center == Some(Point2::new(100.0, 8.0)))
+        );
+        // Without motion along B's line (a still look-alike there), nothing changes.
+        let (t, before) = run_taken(false)?;
+        let after: Vec<_> = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        assert_eq!(after, before);
+        Ok(())
+    }
+
+    #[test]
+    fn a_signature_is_not_replaced_by_a_wider_or_shifted_line() {
+        let old = SwingLine {
+            centre: Point2::new(60.0, 30.0),
+            normal: Vector2::new(0.0, 1.0),
+            sigma_px: 3.0,
+            half_length_px: 15.0,
+        };
+        let tilted = Vector2::new(0.2, 0.98).normalize();
+        assert!(refines(
+            &old,
+            &SwingLine {
+                centre: Point2::new(62.0, 31.0),
+                normal: tilted,
+                ..old
+            }
+        ));
+        assert!(!refines(
+            &old,
+            &SwingLine {
+                sigma_px: 5.0,
+                ..old
+            }
+        ));
+        assert!(!refines(
+            &old,
+            &SwingLine {
+                centre: Point2::new(60.0, 36.0),
+                ..old
+            }
+        ));
+        assert!(!refines(
+            &old,
+            &SwingLine {
+                normal: Vector2::new(1.0, 0.0),
+                ..old
+            }
+        ));
     }
 
     #[test]
