@@ -371,7 +371,8 @@ impl BagRecording {
                 layout,
                 m.width,
                 m.height,
-                Some(m.step as usize),
+                // A step of 0 (not ROS's rule, but written by some recorders): packed rows.
+                (m.step > 0).then_some(m.step as usize),
                 m.data,
                 label,
             ),
@@ -414,7 +415,8 @@ impl BagRecording {
             });
         }
         let (w, h) = (m.width as usize, m.height as usize);
-        let step = m.step as usize;
+        // A step of 0 (not ROS's rule, but written by some recorders): packed rows.
+        let step = if m.step == 0 { 2 * w } else { m.step as usize };
         let rows_fit = step >= 2 * w && h.checked_mul(step) == Some(m.data.len());
         if !rows_fit {
             return Err(KinectError::format(
@@ -652,6 +654,54 @@ fn bag_calibration(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn orbbec() -> BagRecording {
+        BagRecording {
+            frames: Vec::new(),
+            times_ns: Vec::new(),
+            unpaired_depth: 0,
+            calibration: Calibration::tum_default(),
+            flavour: Flavour::Orbbec(Some(ColorCodec::Raw(RawColor::Rgb8))),
+        }
+    }
+
+    fn message<'a>(encoding: &'a str, step: u32, data: &'a [u8]) -> ImageMsg<'a> {
+        ImageMsg {
+            stamp_ns: 0,
+            height: 2,
+            width: 3,
+            encoding,
+            big_endian: false,
+            step,
+            data,
+        }
+    }
+
+    #[test]
+    fn images_with_a_zero_step_are_packed_rows() {
+        let label = Path::new("x.bag");
+        let depth: Vec<u8> = (1..=6u16).flat_map(u16::to_le_bytes).collect();
+        let d = orbbec()
+            .decode_depth(&message("Z16", 0, &depth), label, 0.001)
+            .expect("packed depth");
+        assert_eq!(d.values(), &[1, 2, 3, 4, 5, 6]);
+        let rgb: Vec<u8> = (0..18).collect();
+        let c = orbbec()
+            .decode_color(&message("RGB", 0, &rgb), label)
+            .expect("packed colour");
+        assert_eq!(c.as_raw(), &rgb);
+        // Padded rows are still read by their step; a step that does not fit is an error.
+        let padded: Vec<u8> = [&depth[..6], &[9, 9], &depth[6..], &[9, 9]].concat();
+        let d = orbbec()
+            .decode_depth(&message("Z16", 8, &padded), label, 0.001)
+            .expect("padded depth");
+        assert_eq!(d.values(), &[1, 2, 3, 4, 5, 6]);
+        assert!(
+            orbbec()
+                .decode_depth(&message("Z16", 4, &depth), label, 0.001)
+                .is_err()
+        );
+    }
 
     #[test]
     fn realsense_topics_are_classified() {
