@@ -23,7 +23,7 @@
 //!    surroundings and the offset from the marker's swing line), so a candidate goes to the
 //!    marker it fits best, and to none whose gate or appearance it does not fit. Two places
 //!    cost more: one at another marker's home (its first-frame centre) beyond anywhere this
-//!    marker has been (branch markers swing about their homes: a look-alike there is the other
+//!    marker has been tracked (branch markers swing about their homes: a look-alike there is the other
 //!    marker, even when that marker's own track has lost it), and, for a marker that the quick
 //!    pass saw at its prediction only a little too dim to be tracked, any place outside its
 //!    normal gate (it is most likely still there: coasting a frame beats jumping to a
@@ -272,7 +272,8 @@ struct MarkerState {
     last_center: Point2<f64>,
     /// The centre on the first frame: a branch marker swings about it.
     home: Point2<f64>,
-    /// The farthest the marker has been found from its home (pixels).
+    /// The farthest the marker has been tracked from its home (pixels): places the quick
+    /// pass followed it to, not places detection took it to (those may be look-alikes).
     reach_px: f64,
     /// The swing line the marker is known by: its first, replaced only by lines along the
     /// same direction (a swap of two markers of one look is seen against it).

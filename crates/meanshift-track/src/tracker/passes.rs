@@ -468,4 +468,26 @@ mod tests {
         assert!(!t.at_another_home(0, Point2::new(151.0, 32.0)));
         Ok(())
     }
+
+    #[test]
+    fn only_places_the_quick_pass_followed_widen_the_reach() -> Result<()> {
+        let mut t = two_red_markers()?;
+        let config = t.config.clone();
+        let m = &mut t.markers[0];
+        let home = m.home;
+        let at = |x: f64| Measured {
+            center: Point2::new(home.x + x, home.y),
+            window: PixelRect::centered_at(Point2::new(home.x + x, home.y), 11, 11),
+            holds: PixelRect::centered_at(Point2::new(home.x + x, home.y), 11, 11),
+            confidence: 0.9,
+            moments: None,
+        };
+        // Taken by detection 90 px away (it may be a look-alike): the reach stays.
+        m.found(at(90.0), TrackStatus::Recovered, &config, None, 1);
+        assert!(m.reach_px < 1.0, "{}", m.reach_px);
+        // Followed by the quick pass 20 px away: that is where it swings.
+        m.found(at(20.0), TrackStatus::Tracked, &config, None, 2);
+        assert!((m.reach_px - 20.0).abs() < 1e-9, "{}", m.reach_px);
+        Ok(())
+    }
 }

@@ -216,7 +216,11 @@ impl MarkerState {
     ) -> Observation {
         let innovation = (q.center - self.filter.position).norm_squared();
         self.filter.update(q.center, MEASUREMENT_PX);
-        self.reach_px = self.reach_px.max((q.center - self.home).norm());
+        if status == TrackStatus::Tracked {
+            // Only where the quick pass followed it: a place detection took it to may be a
+            // look-alike, and must not widen where it may be taken next.
+            self.reach_px = self.reach_px.max((q.center - self.home).norm());
+        }
         let side = window_px(self);
         if self.misses >= STOP_AFTER_MISSES && innovation > side * side {
             // Found again after frames of coasting, a window or more from where the coasting
