@@ -44,6 +44,7 @@ impl Tracker {
             let familiar =
                 !jumped || !m.context_informative() || q.context.is_none_or(|v| m.familiar(v));
             let accept = m.misses == 0
+                && !self.far_beyond_reach(i, c)
                 && q.measured.confidence >= self.config.min_confidence
                 && m.typical(q.measured.confidence)
                 && d2[i] <= GATE_CHI2

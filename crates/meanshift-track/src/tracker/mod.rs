@@ -21,10 +21,12 @@
 //!    and colour are candidates. All undecided markers and all candidates are then **assigned
 //!    jointly and exclusively** at least total cost (squared gate distance plus appearance,
 //!    surroundings and the offset from the marker's swing line), so a candidate goes to the
-//!    marker it fits best, and to none whose gate or appearance it does not fit. Two places
+//!    marker it fits best, and to none whose gate or appearance it does not fit. Some places
 //!    cost more: one at another marker's home (its first-frame centre) beyond anywhere this
-//!    marker has been tracked (branch markers swing about their homes: a look-alike there is the other
-//!    marker, even when that marker's own track has lost it), and, for a marker that the quick
+//!    marker has been tracked (branch markers swing about their homes: a look-alike there is
+//!    the other marker, even when that marker's own track has lost it); one far beyond
+//!    anywhere this marker has been tracked from its own home (the quick pass does not accept
+//!    it there either: colour models); and, for a marker that the quick
 //!    pass saw at its prediction only a little too dim to be tracked, any place outside its
 //!    normal gate (it is most likely still there: coasting a frame beats jumping to a
 //!    look-alike). A marker so found is `recovered`.
@@ -137,6 +139,9 @@ const HOME_NEAR_WINDOWS: f64 = 2.0;
 /// Windows beyond the farthest this marker has been found from its home within which a
 /// place is still its own reach (a release throws a marker further than its pull).
 const HOME_MARGIN_WINDOWS: f64 = 2.0;
+/// Windows past a colour marker's reach from its home beyond which a place is not its own
+/// (the quick pass does not accept it there, and detection prices it as another's home).
+const FAR_BEYOND_REACH_WINDOWS: f64 = 5.0;
 /// Share of [`TrackerConfig::min_confidence`] from which a quick-pass measurement at the
 /// prediction, too dim to be tracked, still holds the marker there against a jump.
 const DIM_SHARE: f64 = 0.5;

@@ -362,7 +362,8 @@ impl Tracker {
     ///   motion: reaching it only by a manoeuvre costs [`OWNED_COST`];
     /// - a marker whose quick pass saw it at its prediction, only dimmer than a track needs,
     ///   is most likely still there: leaving its normal gate costs [`OWNED_COST`] too;
-    /// - another marker's home beyond this one's reach costs [`HOME_COST`].
+    /// - another marker's home beyond this one's reach, or a place far beyond that reach from
+    ///   its own home, costs [`HOME_COST`].
     fn colour_cost(
         &self,
         i: usize,
@@ -384,11 +385,19 @@ impl Tracker {
         } else {
             0.0
         };
-        jump + if self.at_another_home(i, p) {
+        jump + if self.at_another_home(i, p) || self.far_beyond_reach(i, p) {
             HOME_COST
         } else {
             0.0
         }
+    }
+
+    /// Whether `p` lies far beyond anywhere colour marker `i` has been tracked from its home
+    /// ([`FAR_BEYOND_REACH_WINDOWS`] past its reach): a branch marker does not get there.
+    pub(super) fn far_beyond_reach(&self, i: usize, p: Point2<f64>) -> bool {
+        let m = &self.markers[i];
+        !matches!(self.config.model, AppearanceModel::Gray { .. })
+            && (p - m.home).norm() > m.reach_px + FAR_BEYOND_REACH_WINDOWS * window_px(m)
     }
 
     /// Whether `p` lies at another marker's home (within [`HOME_NEAR_WINDOWS`]; whatever its
@@ -488,6 +497,20 @@ mod tests {
         // Followed by the quick pass 20 px away: that is where it swings.
         m.found(at(20.0), TrackStatus::Tracked, &config, None, 2);
         assert!((m.reach_px - 20.0).abs() < 1e-9, "{}", m.reach_px);
+        Ok(())
+    }
+
+    #[test]
+    fn a_place_far_beyond_a_markers_reach_is_not_its_own() -> Result<()> {
+        let mut t = two_red_markers()?;
+        let home = t.markers[0].home;
+        let limit = FAR_BEYOND_REACH_WINDOWS * window_px(&t.markers[0]);
+        let at = |d: f64| Point2::new(home.x, home.y + d);
+        assert!(!t.far_beyond_reach(0, at(0.9 * limit)));
+        assert!(t.far_beyond_reach(0, at(1.1 * limit)));
+        // Tracked further out once, it reaches further.
+        t.markers[0].reach_px = 0.5 * limit;
+        assert!(!t.far_beyond_reach(0, at(1.1 * limit)));
         Ok(())
     }
 }
