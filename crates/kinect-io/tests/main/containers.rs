@@ -172,22 +172,28 @@ fn truncated_azure_kinect_recordings_say_so() {
 
 #[test]
 fn realsense_bag_from_rosbags_matches_its_native_copy() {
-    let bag = Recording::open(&fixture("realsense.bag")).expect("open");
-    assert_eq!(bag.layout(), Layout::RealSense);
+    // The depth unit the bag records (0.25 mm), read back as its decimal; colour 3 ms late.
+    check_bag("realsense", Layout::RealSense, 0.00025, 0.003);
+}
+
+/// A fixture bag with 3 paired frames and 1 unpaired depth frame: its layout, depth unit,
+/// colour lag behind depth, and the same clouds as its native copy (`NAME_native`).
+fn check_bag(name: &str, layout: Layout, depth_unit_m: f64, colour_lag_s: f64) {
+    let bag = Recording::open(&fixture(&format!("{name}.bag"))).expect("open");
+    assert_eq!(bag.layout(), layout);
     assert_eq!(bag.len(), 3);
     assert_eq!(bag.unpaired_depth_frames(), 1);
-    // The depth unit the bag records (0.25 mm), read back as its decimal.
-    assert_eq!(bag.calibration().depth_unit_m, 0.00025);
-    let colour_lag: Vec<f64> = bag
+    assert_eq!(bag.calibration().depth_unit_m, depth_unit_m);
+    let lag: Vec<f64> = bag
         .color_timestamps_s()
         .zip(bag.timestamps_s())
         .map(|(c, d)| c - d)
         .collect();
     assert!(
-        colour_lag.iter().all(|l| (l - 0.003).abs() < 1e-6),
-        "{colour_lag:?}"
+        lag.iter().all(|l| (l - colour_lag_s).abs() < 1e-6),
+        "{lag:?}"
     );
-    let native = Recording::open(&fixture("realsense_native")).expect("open");
+    let native = Recording::open(&fixture(&format!("{name}_native"))).expect("open");
     assert_same_as_native(&bag, &native);
 }
 
@@ -208,23 +214,8 @@ fn ros_driver_bag_with_aligned_depth_matches_its_native_copy() {
 #[test]
 fn orbbec_bag_from_rosbags_matches_its_native_copy() {
     // Orbbec SDK v2's layout: custom profile and property messages, Orbbec's longer Image,
-    // MJPG colour, a 0.1 mm depth unit from the recorded properties.
-    let bag = Recording::open(&fixture("orbbec.bag")).expect("open");
-    assert_eq!(bag.layout(), Layout::Orbbec);
-    assert_eq!(bag.len(), 3);
-    assert_eq!(bag.unpaired_depth_frames(), 1);
-    assert_eq!(bag.calibration().depth_unit_m, 0.1 * 1e-3);
-    let colour_lag: Vec<f64> = bag
-        .color_timestamps_s()
-        .zip(bag.timestamps_s())
-        .map(|(c, d)| c - d)
-        .collect();
-    assert!(
-        colour_lag.iter().all(|l| (l - 0.001).abs() < 1e-6),
-        "{colour_lag:?}"
-    );
-    let native = Recording::open(&fixture("orbbec_native")).expect("open");
-    assert_same_as_native(&bag, &native);
+    // MJPG colour, a 0.1 mm depth unit from the recorded properties, colour 1 ms late.
+    check_bag("orbbec", Layout::Orbbec, 0.1 * 1e-3, 0.001);
 }
 
 #[test]
