@@ -92,6 +92,40 @@ impl Tracker {
         }
     }
 
+    /// A marker whose track has stood still for [`PARKED_FRAMES`] frames, away from its home,
+    /// on a place where it once turned down a look-alike, is parked on that look-alike: a
+    /// branch marker at rest stands at its home, and one held away from it got there by
+    /// moving, where no look-alike of its was seen while it was elsewhere. The place becomes
+    /// a known static look-alike (the quick pass no longer accepts it, detection prices it),
+    /// so that the marker is looked for where it swings.
+    pub(super) fn learn_parked(&mut self) {
+        for (m, track) in self.markers.iter_mut().zip(&mut self.tracks) {
+            let Some(at) = parked_at(m, &track.observations) else {
+                continue;
+            };
+            let near = (DISTRACTOR_RADIUS * window_px(m)).max(2.0);
+            let Some(d) = m.distractors.iter_mut().find(|d| (d.at - at).norm() < near) else {
+                continue;
+            };
+            d.seen = d.seen.max(2);
+            // Those frames were the look-alike's: not found, and the marker is looked for
+            // as one missing since then.
+            let len = track.observations.len();
+            for o in &mut track.observations[len - PARKED_FRAMES..] {
+                o.status = TrackStatus::Predicted;
+                o.confidence = 0.0;
+            }
+            m.misses = PARKED_FRAMES;
+            m.last_status = TrackStatus::Predicted;
+            // Where the marker is, is unknown; it swings about its home. Its reach from
+            // there goes back to before it was parked.
+            let side = window_px(m);
+            m.filter.position = m.home;
+            m.filter.stop(side);
+            m.filter.manoeuvre(m.reach_px.max(side));
+        }
+    }
+
     /// How alike the markers found in this frame and the last have moved.
     pub(super) fn learn_coherence(&mut self, results: &[Option<Found>]) {
         let n = self.markers.len();
@@ -177,5 +211,113 @@ impl Tracker {
             };
             self.tracks[i].observations.push(observation);
         }
+    }
+}
+
+/// Where the track has stood still, found, over the last [`PARKED_FRAMES`] frames, when that
+/// is away from the marker's home.
+fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Point2<f64>> {
+    let recent = obs.get(obs.len().checked_sub(PARKED_FRAMES)?..)?;
+    let centres: Vec<Point2<f64>> = recent
+        .iter()
+        .filter(|o| o.status.found())
+        .filter_map(|o| o.center)
+        .collect();
+    if centres.len() < PARKED_FRAMES {
+        return None;
+    }
+    let mean = Point2::from(
+        centres.iter().fold(Vector2::zeros(), |a, c| a + c.coords) / centres.len() as f64,
+    );
+    let still = centres.iter().all(|c| (c - mean).norm() <= PARKED_PX);
+    (still && (mean - m.home).norm() > HOME_NEAR_WINDOWS * window_px(m)).then_some(mean)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracker::two_red_markers;
+
+    /// A's track: `frames` frames found at `at`, after frame 0.
+    fn park(t: &mut Tracker, at: Point2<f64>, frames: usize) {
+        for _ in 0..frames {
+            for (k, track) in t.tracks.iter_mut().enumerate() {
+                let p = if k == 0 { at } else { t.markers[k].home };
+                track.observations.push(Observation {
+                    center: Some(p),
+                    window: PixelRect::centered_at(p, 11, 11),
+                    status: TrackStatus::Tracked,
+                    confidence: 0.95,
+                });
+            }
+        }
+    }
+
+    #[test]
+    fn a_track_standing_on_a_once_seen_look_alike_away_from_home_is_parked() -> Result<()> {
+        let mut t = two_red_markers()?;
+        let side = window_px(&t.markers[0]);
+        let home = t.markers[0].home;
+        let look_alike = Point2::new(home.x + 4.0 * side, home.y + 2.0);
+        let bounds = PixelRect::centered_at(look_alike, 11, 11);
+        remember_distractor(&mut t.markers[0], look_alike, bounds, side);
+        assert!(!t.markers[0].on_distractor(look_alike));
+        // Standing there for fewer frames than the rule asks: a swing's turn.
+        park(&mut t, look_alike, PARKED_FRAMES - 1);
+        t.learn_parked();
+        assert!(!t.markers[0].on_distractor(look_alike));
+        park(&mut t, look_alike, 1);
+        t.learn_parked();
+        // A known static look-alike now; those frames are no longer reported found, and A
+        // is looked for about its home.
+        assert!(t.markers[0].on_distractor(look_alike));
+        let obs = &t.tracks[0].observations;
+        assert!(
+            obs[obs.len() - PARKED_FRAMES..]
+                .iter()
+                .all(|o| o.status == TrackStatus::Predicted && o.confidence == 0.0)
+        );
+        assert_eq!(t.markers[0].misses, PARKED_FRAMES);
+        assert_eq!(t.markers[0].filter.position, home);
+        // B, standing still at its home all along, is untouched.
+        assert!(
+            t.tracks[1]
+                .observations
+                .iter()
+                .skip(1)
+                .all(|o| o.status == TrackStatus::Tracked)
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn standing_still_at_home_or_where_no_look_alike_was_seen_is_not_parked() -> Result<()> {
+        let mut t = two_red_markers()?;
+        let side = window_px(&t.markers[0]);
+        let home = t.markers[0].home;
+        // A look-alike seen once right by its home: standing there is resting.
+        let by_home = Point2::new(home.x + 1.0, home.y + 1.0);
+        remember_distractor(
+            &mut t.markers[0],
+            by_home,
+            PixelRect::centered_at(by_home, 11, 11),
+            side,
+        );
+        park(&mut t, by_home, 2 * PARKED_FRAMES);
+        t.learn_parked();
+        assert!(!t.markers[0].on_distractor(by_home));
+        // Held still away from home where no look-alike was seen: a pull being held.
+        let held = Point2::new(home.x + 4.0 * side, home.y);
+        park(&mut t, held, 2 * PARKED_FRAMES);
+        t.learn_parked();
+        assert_eq!(t.markers[0].misses, 0);
+        assert!(
+            t.tracks[0]
+                .observations
+                .iter()
+                .skip(1)
+                .all(|o| o.status == TrackStatus::Tracked)
+        );
+        Ok(())
     }
 }

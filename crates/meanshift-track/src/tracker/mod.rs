@@ -33,7 +33,12 @@
 //! 4. A marker without a measurement coasts on its prediction (`predicted`) for up to
 //!    [`TrackerConfig::max_coast_frames`] frames, then is `lost` (no centre) while the search
 //!    goes on.
-//! 5. **Swaps undone**: two markers of one look (colour models) whose last frames each run
+//! 5. **Parked on a look-alike**: a track that has stood still for [`PARKED_FRAMES`] frames
+//!    away from its home, on a place where the marker once turned down a look-alike, is on
+//!    that look-alike (a branch marker at rest stands at its home). The place becomes a
+//!    known static look-alike, those frames are revised to `predicted`, and the marker is
+//!    looked for about its home.
+//! 6. **Swaps undone**: two markers of one look (colour models) whose last frames each run
 //!    along the swing line the other is known by, and not their own, are exchanged, with
 //!    their observations since they last met (`tracker::swaps`); so are two where one track
 //!    runs along the other's line, moving and far from its own, while the other's track is
@@ -194,6 +199,13 @@ const MAX_DISTRACTORS: usize = 32;
 const MAX_SEEN: u32 = 64;
 /// A look-alike seen again within this distance (pixels) has not moved.
 const STATIC_PX: f64 = 1.5;
+/// Frames a track must have stood still on a once-seen look-alike, away from its home, to
+/// count as parked on it (a quarter of a second at 30 fps: a swinging marker passes a place
+/// in a frame or two, and turns at the end of a swing in three or four).
+const PARKED_FRAMES: usize = 8;
+/// Largest distance (pixels) of each of those centres from their mean for the track to
+/// stand still (a parked window jitters by a pixel with noise and JPEG artefacts).
+const PARKED_PX: f64 = 2.0;
 /// Border of CamShift's size estimate around the window (OpenCV's `TOLERANCE`).
 const ADAPTIVE_BORDER_PX: i32 = 10;
 /// Blobs of fewer pixels are noise, not pieces of a marker.
@@ -512,6 +524,7 @@ impl Tracker {
         self.learn_coherence(&results);
         let merged = self.merged_markers(&results, &predictions);
         self.record(frame, depth, results, &merged);
+        self.learn_parked();
         self.repair_swaps();
         if let Some(p) = self.previous.as_mut() {
             p.copy_from_slice(frame);

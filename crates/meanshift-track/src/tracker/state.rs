@@ -368,7 +368,11 @@ pub(super) fn remember_distractor(
         return;
     }
     if m.distractors.len() >= MAX_DISTRACTORS {
-        m.distractors.remove(0);
+        // The oldest of the least seen goes: a static look-alike outlasts places seen once.
+        let least = m.distractors.iter().map(|d| d.seen).min().unwrap_or(0);
+        if let Some(k) = m.distractors.iter().position(|d| d.seen == least) {
+            m.distractors.remove(k);
+        }
     }
     m.distractors.push(Distractor {
         at: p,
