@@ -40,7 +40,8 @@
 //!    looked for about its home.
 //! 6. **Swaps undone**: two markers of one look (colour models) whose last frames each run
 //!    along the swing line the other is known by, and not their own, are exchanged, with
-//!    their observations since they last met (`tracker::swaps`); so are two where one track
+//!    their observations since they last met (`tracker::swaps`), or, for two of one look
+//!    that did not meet in the last 30 frames, the frames the swap was judged on; so are two where one track
 //!    runs along the other's line, moving and far from its own, while the other's track is
 //!    elsewhere (it took the other marker where they met). The frames between the swap
 //!    and its repair are revised in [`Tracker::tracks`]: a caller that reads a frame's

@@ -13,6 +13,11 @@
 //! colours match: a marker half hidden on the first frame is measured another colour (on a
 //! tuning seed of the crossing condition, one of a pair by 80 RGB levels).
 //!
+//! Two markers of one look can also swap without meeting: one is lost, and found again on
+//! the other's marker while the other's track has gone to its own (a release in blur, a
+//! twig). A clean swap of such a pair (each track along the other's line, not its own) is
+//! undone too, over the frames it was judged on; where it began is not known.
+//!
 //! One track can also take the other marker without a swap: where they met, `A`'s track
 //! went with `B`'s marker while `B`'s track stayed behind (half hidden, or on a look-alike).
 //! When `A`'s recent track runs along `B`'s line, moving, far from its own line, and `B`'s
@@ -86,19 +91,23 @@ impl Tracker {
         let n = self.markers.len();
         for i in 0..n {
             for j in i + 1..n {
-                // Only two that met can have swapped (whatever their first-frame colours say:
-                // a marker half hidden on the first frame was measured another colour).
-                if self.last_met(i, j).is_none() {
-                    continue;
-                }
                 let (Some(si), Some(sj)) = (self.markers[i].signature, self.markers[j].signature)
                 else {
                     continue;
                 };
-                if self.swapped(i, j, si, sj)
-                    || self.stolen(i, j, si, sj)
-                    || self.stolen(j, i, sj, si)
-                {
+                // Two that met can have swapped there (whatever their first-frame colours
+                // say: a marker half hidden on the first frame was measured another colour).
+                // Two that did not may still have: one lost, then found on the other's
+                // marker while the other's track had gone to its own; only a clean swap of
+                // same-look markers is undone then, over the frames it was judged on.
+                let met = self.last_met(i, j).is_some();
+                let swapped = self.swapped(i, j, si, sj);
+                let exchange = if met {
+                    swapped || self.stolen(i, j, si, sj) || self.stolen(j, i, sj, si)
+                } else {
+                    swapped && same_look(&self.markers[i], &self.markers[j])
+                };
+                if exchange {
                     self.exchange(i, j);
                 }
             }
@@ -191,13 +200,18 @@ impl Tracker {
         std::mem::swap(&mut a.context_level, &mut b.context_level);
         std::mem::swap(&mut a.context_var, &mut b.context_var);
         std::mem::swap(&mut a.gate_var, &mut b.gate_var);
-        // From the frame after they were last together (the swap happened there).
-        let Some(met) = self.last_met(i, j) else {
-            return;
-        };
+        // From the frame after they were last together (the swap happened there), or over
+        // the frames the swap was judged on.
+        let len = self.tracks[i]
+            .observations
+            .len()
+            .min(self.tracks[j].observations.len());
+        let from = self
+            .last_met(i, j)
+            .map_or(len.saturating_sub(SWAP_FRAMES), |met| met + 1);
         let (ta, tb) = self.tracks.split_at_mut(j);
         let (oa, ob) = (&mut ta[i].observations, &mut tb[0].observations);
-        for f in met + 1..oa.len().min(ob.len()) {
+        for f in from..len {
             std::mem::swap(&mut oa[f], &mut ob[f]);
         }
     }
@@ -327,6 +341,31 @@ mod tests {
         let (t, before) = run_taken(false)?;
         let after: Vec<_> = t.tracks[0].observations.iter().map(|o| o.center).collect();
         assert_eq!(after, before);
+        Ok(())
+    }
+
+    #[test]
+    fn a_clean_swap_of_two_that_never_met_is_undone_over_the_judged_frames() -> Result<()> {
+        let mut t = tracker()?;
+        // Never within a window and a half: A goes down B's line while B's track runs
+        // along A's, 30 px apart or more.
+        for k in 0..8 {
+            push(
+                &mut t,
+                Point2::new(100.5, 18.0 + 3.0 * f64::from(k)),
+                Point2::new(50.0 + 3.0 * f64::from(k), 30.5),
+            );
+        }
+        assert!(t.last_met(0, 1).is_none());
+        let before: Vec<_> = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        let b_before: Vec<_> = t.tracks[1].observations.iter().map(|o| o.center).collect();
+        t.repair_swaps();
+        let len = before.len();
+        let b: Vec<_> = t.tracks[1].observations.iter().map(|o| o.center).collect();
+        // The judged frames are exchanged; the earlier ones, where nothing says they were
+        // swapped, are not.
+        assert_eq!(b[len - SWAP_FRAMES..], before[len - SWAP_FRAMES..]);
+        assert_eq!(b[..len - SWAP_FRAMES], b_before[..len - SWAP_FRAMES]);
         Ok(())
     }
 
