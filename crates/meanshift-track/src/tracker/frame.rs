@@ -100,14 +100,23 @@ impl Tracker {
     /// so that the marker is looked for where it swings.
     pub(super) fn learn_parked(&mut self) {
         for (m, track) in self.markers.iter_mut().zip(&mut self.tracks) {
-            let Some(at) = parked_at(m, &track.observations) else {
+            let Some(parked) = parked_at(m, &track.observations) else {
                 continue;
             };
-            let near = (DISTRACTOR_RADIUS * window_px(m)).max(2.0);
-            let Some(d) = m.distractors.iter_mut().find(|d| (d.at - at).norm() < near) else {
+            let side = window_px(m);
+            let near = (DISTRACTOR_RADIUS * side).max(2.0);
+            if let Some(d) = m
+                .distractors
+                .iter_mut()
+                .find(|d| (d.at - parked.at).norm() < near)
+            {
+                d.seen = d.seen.max(2);
+            } else if parked.jumped_in {
+                remember_distractor(m, parked.at, parked.bounds, side);
+                remember_distractor(m, parked.at, parked.bounds, side);
+            } else {
                 continue;
-            };
-            d.seen = d.seen.max(2);
+            }
             // Those frames were the look-alike's: not found, and the marker is looked for
             // as one missing since then.
             let len = track.observations.len();
@@ -117,9 +126,7 @@ impl Tracker {
             }
             m.misses = PARKED_FRAMES;
             m.last_status = TrackStatus::Predicted;
-            // Where the marker is, is unknown; it swings about its home. Its reach from
-            // there goes back to before it was parked.
-            let side = window_px(m);
+            // Where the marker is, is unknown; it swings about its home, within its reach.
             m.filter.position = m.home;
             m.filter.stop(side);
             m.filter.manoeuvre(m.reach_px.max(side));
@@ -214,23 +221,50 @@ impl Tracker {
     }
 }
 
-/// Where the track has stood still, found, over the last [`PARKED_FRAMES`] frames, when that
-/// is away from the marker's home.
-fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Point2<f64>> {
-    let recent = obs.get(obs.len().checked_sub(PARKED_FRAMES)?..)?;
-    let centres: Vec<Point2<f64>> = recent
+/// A place a track has stood still on.
+struct Parked {
+    /// The mean of its centres there.
+    at: Point2<f64>,
+    /// The last window there.
+    bounds: PixelRect,
+    /// Whether detection took it there by a jump of more than [`PARKED_JUMP_WINDOWS`]
+    /// windows (rather than the quick pass following it there).
+    jumped_in: bool,
+}
+
+/// Where the track has stood still, found on at least [`PARKED_MIN_FOUND`] of the last
+/// [`PARKED_FRAMES`] frames, when that is away from the marker's home.
+fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
+    let start = obs.len().checked_sub(PARKED_FRAMES)?;
+    let recent = obs.get(start..)?;
+    let found: Vec<&Observation> = recent
         .iter()
-        .filter(|o| o.status.found())
-        .filter_map(|o| o.center)
+        .filter(|o| o.status.found() && o.center.is_some())
         .collect();
-    if centres.len() < PARKED_FRAMES {
+    if found.len() < PARKED_MIN_FOUND {
         return None;
     }
-    let mean = Point2::from(
+    let centres: Vec<Point2<f64>> = found.iter().filter_map(|o| o.center).collect();
+    let at = Point2::from(
         centres.iter().fold(Vector2::zeros(), |a, c| a + c.coords) / centres.len() as f64,
     );
-    let still = centres.iter().all(|c| (c - mean).norm() <= PARKED_PX);
-    (still && (mean - m.home).norm() > HOME_NEAR_WINDOWS * window_px(m)).then_some(mean)
+    let side = window_px(m);
+    let still = centres.iter().all(|c| (c - at).norm() <= PARKED_PX);
+    if !still || (at - m.home).norm() <= HOME_NEAR_WINDOWS * side {
+        return None;
+    }
+    let jumped_in = obs[start.saturating_sub(1)..].windows(2).any(|w| {
+        w[1].status == TrackStatus::Recovered
+            && matches!((w[0].center, w[1].center), (Some(a), Some(b))
+                if (b - a).norm() > PARKED_JUMP_WINDOWS * side)
+    });
+    Some(Parked {
+        at,
+        bounds: found
+            .last()
+            .map_or(PixelRect::centered_at(at, m.size.0, m.size.1), |o| o.window),
+        jumped_in,
+    })
 }
 
 #[cfg(test)]
@@ -287,6 +321,34 @@ mod tests {
                 .skip(1)
                 .all(|o| o.status == TrackStatus::Tracked)
         );
+        Ok(())
+    }
+
+    #[test]
+    fn a_track_that_detection_threw_onto_a_still_place_is_parked_there() -> Result<()> {
+        let mut t = two_red_markers()?;
+        let side = window_px(&t.markers[0]);
+        let home = t.markers[0].home;
+        let there = Point2::new(home.x + 5.0 * side, home.y + 3.0);
+        park(&mut t, home, 3);
+        park(&mut t, there, PARKED_FRAMES);
+        // Taken there by detection, from home; two of the frames there not found.
+        let len = t.tracks[0].observations.len();
+        let obs = &mut t.tracks[0].observations;
+        obs[len - PARKED_FRAMES].status = TrackStatus::Recovered;
+        for o in &mut obs[len - 3..len - 1] {
+            o.status = TrackStatus::Predicted;
+        }
+        t.learn_parked();
+        assert!(t.markers[0].on_distractor(there));
+        assert_eq!(t.markers[0].misses, PARKED_FRAMES);
+        // Followed there by the quick pass instead (a pull held there): not parked.
+        let mut t = two_red_markers()?;
+        park(&mut t, home, 3);
+        park(&mut t, there, PARKED_FRAMES);
+        t.learn_parked();
+        assert!(!t.markers[0].on_distractor(there));
+        assert_eq!(t.markers[0].misses, 0);
         Ok(())
     }
 

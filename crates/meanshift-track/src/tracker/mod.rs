@@ -34,10 +34,11 @@
 //!    [`TrackerConfig::max_coast_frames`] frames, then is `lost` (no centre) while the search
 //!    goes on.
 //! 5. **Parked on a look-alike**: a track that has stood still for [`PARKED_FRAMES`] frames
-//!    away from its home, on a place where the marker once turned down a look-alike, is on
-//!    that look-alike (a branch marker at rest stands at its home). The place becomes a
-//!    known static look-alike, those frames are revised to `predicted`, and the marker is
-//!    looked for about its home.
+//!    away from its home, on a place where the marker once turned down a look-alike or
+//!    where detection threw it by a jump, is on a look-alike (a branch marker at rest stands
+//!    at its home; one held away from it got there by moving). The place becomes a known
+//!    static look-alike, those frames are revised to `predicted`, and the marker is looked
+//!    for about its home.
 //! 6. **Swaps undone**: two markers of one look (colour models) whose last frames each run
 //!    along the swing line the other is known by, and not their own, are exchanged, with
 //!    their observations since they last met (`tracker::swaps`), or, for two of one look
@@ -204,6 +205,11 @@ const STATIC_PX: f64 = 1.5;
 /// count as parked on it (a quarter of a second at 30 fps: a swinging marker passes a place
 /// in a frame or two, and turns at the end of a swing in three or four).
 const PARKED_FRAMES: usize = 8;
+/// Of those frames, the least found (a parked track on a dim look-alike misses some).
+const PARKED_MIN_FOUND: usize = 6;
+/// A track taken by detection to a place more than this many windows from where it was
+/// (and parked there) was not followed there.
+const PARKED_JUMP_WINDOWS: f64 = 2.0;
 /// Largest distance (pixels) of each of those centres from their mean for the track to
 /// stand still (a parked window jitters by a pixel with noise and JPEG artefacts).
 const PARKED_PX: f64 = 2.0;
