@@ -89,6 +89,8 @@ impl Tracker {
             }
         }
         let n = self.markers.len();
+        // Where each marker was found lately, once (an exchange revises its pair's).
+        let mut recent: Vec<Vec<Point2<f64>>> = (0..n).map(|k| self.recent_found(k)).collect();
         for i in 0..n {
             for j in i + 1..n {
                 let (Some(si), Some(sj)) = (self.markers[i].signature, self.markers[j].signature)
@@ -101,14 +103,20 @@ impl Tracker {
                 // marker while the other's track had gone to its own; only a clean swap of
                 // same-look markers is undone then, over the frames it was judged on.
                 let met = self.last_met(i, j).is_some();
-                let swapped = self.swapped(i, j, si, sj);
+                if !met && !same_look(&self.markers[i], &self.markers[j]) {
+                    continue;
+                }
+                let (pi, pj) = (&recent[i], &recent[j]);
+                let swapped = swapped(pi, pj, si, sj);
                 let exchange = if met {
-                    swapped || self.stolen(i, j, si, sj) || self.stolen(j, i, sj, si)
+                    swapped || self.stolen(pi, j, si, sj) || self.stolen(pj, i, sj, si)
                 } else {
-                    swapped && same_look(&self.markers[i], &self.markers[j])
+                    swapped
                 };
                 if exchange {
                     self.exchange(i, j);
+                    recent[i] = self.recent_found(i);
+                    recent[j] = self.recent_found(j);
                 }
             }
         }
@@ -124,29 +132,12 @@ impl Tracker {
             .collect()
     }
 
-    /// Whether the recent tracks of `i` and `j` lie along each other's lines, not their own.
-    fn swapped(&self, i: usize, j: usize, si: SwingLine, sj: SwingLine) -> bool {
-        let (pi, pj) = (self.recent_found(i), self.recent_found(j));
-        if pi.len() < SWAP_MIN_FOUND || pj.len() < SWAP_MIN_FOUND {
-            return false;
-        }
-        let mean = |pts: &[Point2<f64>], line: &SwingLine| {
-            pts.iter().map(|&p| line.offset(p)).sum::<f64>() / pts.len() as f64
-        };
-        let keep = mean(&pi, &si) + mean(&pj, &sj);
-        let (swap_i, swap_j) = (mean(&pi, &sj), mean(&pj, &si));
-        swap_i <= SWAP_MAX_OFFSET
-            && swap_j <= SWAP_MAX_OFFSET
-            && swap_i + swap_j < SWAP_RATIO * keep
-    }
-
     /// Whether `i`'s recent track has followed `j`'s marker: it runs along `j`'s line, moving,
     /// far from its own line, while `j`'s track is elsewhere (a marker that took the other's
     /// marker where they met, whose partner's track was left behind, half hidden or on a
     /// look-alike, rather than on `i`'s marker: not a swap, but `j`'s marker is where `i`'s
     /// track is).
-    fn stolen(&self, i: usize, j: usize, si: SwingLine, sj: SwingLine) -> bool {
-        let pi = self.recent_found(i);
+    fn stolen(&self, pi: &[Point2<f64>], j: usize, si: SwingLine, sj: SwingLine) -> bool {
         let (Some(&first), Some(&last)) = (pi.first(), pi.last()) else {
             return false;
         };
@@ -215,6 +206,20 @@ impl Tracker {
             std::mem::swap(&mut oa[f], &mut ob[f]);
         }
     }
+}
+
+/// Whether the recent tracks `pi` and `pj` of two markers lie along each other's lines `sj`
+/// and `si`, not their own.
+fn swapped(pi: &[Point2<f64>], pj: &[Point2<f64>], si: SwingLine, sj: SwingLine) -> bool {
+    if pi.len() < SWAP_MIN_FOUND || pj.len() < SWAP_MIN_FOUND {
+        return false;
+    }
+    let mean = |pts: &[Point2<f64>], line: &SwingLine| {
+        pts.iter().map(|&p| line.offset(p)).sum::<f64>() / pts.len() as f64
+    };
+    let keep = mean(pi, &si) + mean(pj, &sj);
+    let (swap_i, swap_j) = (mean(pi, &sj), mean(pj, &si));
+    swap_i <= SWAP_MAX_OFFSET && swap_j <= SWAP_MAX_OFFSET && swap_i + swap_j < SWAP_RATIO * keep
 }
 
 #[cfg(test)]
