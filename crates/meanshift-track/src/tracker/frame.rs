@@ -93,11 +93,12 @@ impl Tracker {
     }
 
     /// A marker whose track has stood still for [`PARKED_FRAMES`] frames, away from its home,
-    /// on a place where it once turned down a look-alike, is parked on that look-alike: a
-    /// branch marker at rest stands at its home, and one held away from it got there by
-    /// moving, where no look-alike of its was seen while it was elsewhere. The place becomes
-    /// a known static look-alike (the quick pass no longer accepts it, detection prices it),
-    /// so that the marker is looked for where it swings.
+    /// on a place where it once turned down a look-alike or where detection threw it by a
+    /// jump, is parked on a look-alike: a branch marker at rest stands at its home, and one
+    /// held away from it got there by moving (followed by the quick pass, where no
+    /// look-alike of its was seen while it was elsewhere). The place becomes a known static
+    /// look-alike (the quick pass no longer accepts it, detection prices it), those frames
+    /// are revised to `predicted`, and the marker is looked for where it swings.
     pub(super) fn learn_parked(&mut self) {
         for (m, track) in self.markers.iter_mut().zip(&mut self.tracks) {
             let Some(parked) = parked_at(m, &track.observations) else {
@@ -236,20 +237,21 @@ struct Parked {
 /// [`PARKED_FRAMES`] frames, when that is away from the marker's home.
 fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     let start = obs.len().checked_sub(PARKED_FRAMES)?;
-    let recent = obs.get(start..)?;
-    let found: Vec<&Observation> = recent
-        .iter()
-        .filter(|o| o.status.found() && o.center.is_some())
-        .collect();
-    if found.len() < PARKED_MIN_FOUND {
+    let found = || {
+        obs[start..]
+            .iter()
+            .filter(|o| o.status.found())
+            .filter_map(|o| o.center.map(|c| (c, o.window)))
+    };
+    let (count, sum) = found().fold((0_u32, Vector2::zeros()), |(n, s), (c, _)| {
+        (n + 1, s + c.coords)
+    });
+    if (count as usize) < PARKED_MIN_FOUND {
         return None;
     }
-    let centres: Vec<Point2<f64>> = found.iter().filter_map(|o| o.center).collect();
-    let at = Point2::from(
-        centres.iter().fold(Vector2::zeros(), |a, c| a + c.coords) / centres.len() as f64,
-    );
+    let at = Point2::from(sum / f64::from(count));
     let side = window_px(m);
-    let still = centres.iter().all(|c| (c - at).norm() <= PARKED_PX);
+    let still = found().all(|(c, _)| (c - at).norm() <= PARKED_PX);
     if !still || (at - m.home).norm() <= HOME_NEAR_WINDOWS * side {
         return None;
     }
@@ -260,9 +262,9 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     });
     Some(Parked {
         at,
-        bounds: found
-            .last()
-            .map_or(PixelRect::centered_at(at, m.size.0, m.size.1), |o| o.window),
+        bounds: found()
+            .next_back()
+            .map_or(PixelRect::centered_at(at, m.size.0, m.size.1), |f| f.1),
         jumped_in,
     })
 }
@@ -271,6 +273,13 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
 mod tests {
     use super::*;
     use crate::tracker::two_red_markers;
+
+    /// Two red markers, and A's window side and home.
+    fn setup() -> Result<(Tracker, f64, Point2<f64>)> {
+        let t = two_red_markers()?;
+        let (side, home) = (window_px(&t.markers[0]), t.markers[0].home);
+        Ok((t, side, home))
+    }
 
     /// A's track: `frames` frames found at `at`, after frame 0.
     fn park(t: &mut Tracker, at: Point2<f64>, frames: usize) {
@@ -289,9 +298,7 @@ mod tests {
 
     #[test]
     fn a_track_standing_on_a_once_seen_look_alike_away_from_home_is_parked() -> Result<()> {
-        let mut t = two_red_markers()?;
-        let side = window_px(&t.markers[0]);
-        let home = t.markers[0].home;
+        let (mut t, side, home) = setup()?;
         let look_alike = Point2::new(home.x + 4.0 * side, home.y + 2.0);
         let bounds = PixelRect::centered_at(look_alike, 11, 11);
         remember_distractor(&mut t.markers[0], look_alike, bounds, side);
@@ -326,9 +333,7 @@ mod tests {
 
     #[test]
     fn a_track_that_detection_threw_onto_a_still_place_is_parked_there() -> Result<()> {
-        let mut t = two_red_markers()?;
-        let side = window_px(&t.markers[0]);
-        let home = t.markers[0].home;
+        let (mut t, side, home) = setup()?;
         let there = Point2::new(home.x + 5.0 * side, home.y + 3.0);
         park(&mut t, home, 3);
         park(&mut t, there, PARKED_FRAMES);
@@ -343,7 +348,7 @@ mod tests {
         assert!(t.markers[0].on_distractor(there));
         assert_eq!(t.markers[0].misses, PARKED_FRAMES);
         // Followed there by the quick pass instead (a pull held there): not parked.
-        let mut t = two_red_markers()?;
+        let (mut t, _, _) = setup()?;
         park(&mut t, home, 3);
         park(&mut t, there, PARKED_FRAMES);
         t.learn_parked();
@@ -354,9 +359,7 @@ mod tests {
 
     #[test]
     fn standing_still_at_home_or_where_no_look_alike_was_seen_is_not_parked() -> Result<()> {
-        let mut t = two_red_markers()?;
-        let side = window_px(&t.markers[0]);
-        let home = t.markers[0].home;
+        let (mut t, side, home) = setup()?;
         // A look-alike seen once right by its home: standing there is resting.
         let by_home = Point2::new(home.x + 1.0, home.y + 1.0);
         remember_distractor(

@@ -42,9 +42,9 @@
 //! 6. **Swaps undone**: two markers of one look (colour models) whose last frames each run
 //!    along the swing line the other is known by, and not their own, are exchanged, with
 //!    their observations since they last met (`tracker::swaps`), or, for two of one look
-//!    that did not meet in the last 30 frames, the frames the swap was judged on; so are two where one track
-//!    runs along the other's line, moving and far from its own, while the other's track is
-//!    elsewhere (it took the other marker where they met). The frames between the swap
+//!    that did not meet in the last 30 frames, over the frames the swap was judged on; so
+//!    are two where one track runs along the other's line, moving and far from its own,
+//!    while the other's track is elsewhere (it took the other marker where they met). The frames between the swap
 //!    and its repair are revised in [`Tracker::tracks`]: a caller that reads a frame's
 //!    result at once may see up to 30 earlier frames change later.
 //!
@@ -201,8 +201,8 @@ const MAX_DISTRACTORS: usize = 32;
 const MAX_SEEN: u32 = 64;
 /// A look-alike seen again within this distance (pixels) has not moved.
 const STATIC_PX: f64 = 1.5;
-/// Frames a track must have stood still on a once-seen look-alike, away from its home, to
-/// count as parked on it (a quarter of a second at 30 fps: a swinging marker passes a place
+/// Frames a track must have stood still away from its home, on a once-seen look-alike or
+/// where detection threw it, to count as parked there (a quarter of a second at 30 fps: a swinging marker passes a place
 /// in a frame or two, and turns at the end of a swing in three or four).
 const PARKED_FRAMES: usize = 8;
 /// Of those frames, the least found (a parked track on a dim look-alike misses some).
