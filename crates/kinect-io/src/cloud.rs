@@ -24,7 +24,7 @@ use crate::freenect2::{
     FREENECT2_FILTER_HALF_HEIGHT_PX, FREENECT2_FILTER_HALF_WIDTH_PX, FREENECT2_FILTER_TOLERANCE,
     Freenect2Frame, Freenect2Registration,
 };
-use crate::occlusion::MinDepthMap;
+use crate::occlusion::WindowSweep;
 use crate::zbuffer;
 
 /// One point of a textured cloud.
@@ -317,9 +317,11 @@ impl TexturedCloud {
 /// libfreenect2's (5x3 colour pixels, 1 % depth tolerance).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OcclusionFilter {
-    /// Half-width of the window in colour pixels (default 2).
+    /// Half-width of the window in colour pixels (default 2; at most
+    /// [`MAX_OCCLUSION_HALF_WINDOW_PX`]).
     pub half_width_px: u32,
-    /// Half-height of the window in colour pixels (default 1).
+    /// Half-height of the window in colour pixels (default 1; at most
+    /// [`MAX_OCCLUSION_HALF_WINDOW_PX`]).
     pub half_height_px: u32,
     /// Relative depth margin: a point at depth `z` is occluded when the nearest depth `z_min`
     /// in its window has `(z - z_min) / z > tolerance` (libfreenect2's test; default 0.01).
@@ -335,6 +337,11 @@ impl Default for OcclusionFilter {
         }
     }
 }
+
+/// Largest half width or half height of the occlusion filter's window, colour pixels: 16
+/// times libfreenect2's 2 x 1 at 1920x1080 (the test reads the whole window for every point,
+/// so the bound also bounds its time: at most 65 x 65 reads a point).
+pub const MAX_OCCLUSION_HALF_WINDOW_PX: u32 = 32;
 
 /// Options of [`CloudBuilder`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -371,7 +378,8 @@ impl CloudConfig {
     ///
     /// # Errors
     /// [`KinectError::InvalidParameter`] for a negative or NaN depth range, an empty range,
-    /// or a negative or NaN filter tolerance.
+    /// a negative or NaN filter tolerance, or a filter window above
+    /// [`MAX_OCCLUSION_HALF_WINDOW_PX`].
     pub fn validate(&self) -> Result<()> {
         if !(self.min_depth_m >= 0.0 && self.max_depth_m > self.min_depth_m) {
             return Err(KinectError::param(
@@ -388,6 +396,17 @@ impl CloudConfig {
             return Err(KinectError::param(
                 "occlusion filter tolerance",
                 format!("{} must be finite and non-negative", f.tolerance),
+            ));
+        }
+        if let Some(f) = &self.occlusion_filter
+            && f.half_width_px.max(f.half_height_px) > MAX_OCCLUSION_HALF_WINDOW_PX
+        {
+            return Err(KinectError::param(
+                "occlusion filter window",
+                format!(
+                    "half width {} px, half height {} px; at most {MAX_OCCLUSION_HALF_WINDOW_PX} px each",
+                    f.half_width_px, f.half_height_px
+                ),
             ));
         }
         Ok(())
@@ -520,38 +539,12 @@ pub struct CloudBuilder {
 /// The occlusion filter's buffers.
 #[derive(Default)]
 struct Occlusion {
-    /// Nearest depth per colour pixel.
-    map: MinDepthMap,
-    /// The points that project onto the colour image.
-    candidates: Vec<Candidate>,
-    /// Their depth pixels (flat index), apart: only the few occluded ones are looked up.
-    candidate_pixels: Vec<u32>,
-    /// Positions in `candidates` that the test's block level could not clear.
-    contested: Vec<u32>,
+    /// The filter's test: the points that project onto the colour image, swept by rows.
+    sweep: WindowSweep,
     /// Row scratch of the rigid engine.
     rows: RowBuffers,
     /// A row of y rays, for separable cameras.
     row_y: Vec<f64>,
-}
-
-/// A point that projects onto the colour image: its colour pixel (`v << 16 | u`; colour
-/// images are at most [`crate::camera::MAX_IMAGE_SIDE_PX`] < 2^16 a side) and its quantised
-/// depth in the colour camera (for the occlusion filter). Eight bytes: the test streams
-/// through every candidate twice.
-#[derive(Debug, Clone, Copy)]
-struct Candidate {
-    color_px: u32,
-    depth_q: u32,
-}
-
-impl Candidate {
-    #[inline]
-    fn at(self) -> (usize, usize) {
-        (
-            (self.color_px & 0xffff) as usize,
-            (self.color_px >> 16) as usize,
-        )
-    }
 }
 
 impl CloudBuilder {
@@ -594,11 +587,7 @@ impl CloudBuilder {
             calibration: calibration.clone(),
             config,
             engine,
-            occlusion: Occlusion {
-                candidates: Vec::with_capacity(calibration.depth_camera.pixel_count()),
-                candidate_pixels: Vec::with_capacity(calibration.depth_camera.pixel_count()),
-                ..Occlusion::default()
-            },
+            occlusion: Occlusion::default(),
         })
     }
 
@@ -810,11 +799,7 @@ impl Rigid<'_> {
     fn build(&self, frame: &Inputs<'_>, occlusion: &mut Occlusion, out: Slots<'_>) -> usize {
         let ccam = self.camera;
         let (cw, ch) = (ccam.width as usize, ccam.height as usize);
-        if self.filter.is_some() {
-            occlusion.map.begin_frame(cw, ch);
-        }
-        occlusion.candidates.clear();
-        occlusion.candidate_pixels.clear();
+        occlusion.sweep.begin(cw, ch);
         let raw_rgb = frame.color.as_raw();
         let (cwf, chf) = (cw as f64, ch as f64);
         let w = frame.depth.width() as usize;
@@ -845,15 +830,9 @@ impl Rigid<'_> {
                     // colour of occluded points away afterwards.
                     rgb_row[u] = rgb_at(raw_rgb, cw, cu as usize, cv as usize);
                     if self.filter.is_some() {
-                        let depth_q = zbuffer::quantise(zc);
                         occlusion
-                            .map
-                            .lower_coarse((cu as usize, cv as usize), depth_q);
-                        occlusion.candidates.push(Candidate {
-                            color_px: cv << 16 | cu,
-                            depth_q,
-                        });
-                        occlusion.candidate_pixels.push((v * w + u) as u32);
+                            .sweep
+                            .push((cu, cv), zbuffer::quantise(zc), (v * w + u) as u32);
                     }
                 }
             }
@@ -965,35 +944,19 @@ impl RowBuffers {
 }
 
 impl Occlusion {
-    /// Take the colour away from the candidates the colour camera does not see. The occlusion test (libfreenect2's: the
-    /// nearest depth the colour camera sees within the window around the point's colour
-    /// pixel, which libfreenect2 spreads over the window and this gathers, the same for a
-    /// symmetric window) runs in two steps: the block level clears most points; the fine
-    /// level is filled and asked only around the contested ones.
+    /// Take the colour away from the points the colour camera does not see
+    /// (libfreenect2's test: a nearer depth by more than the tolerance within the window
+    /// around the point's colour pixel; see [`WindowSweep::hidden`]).
     fn hide_occluded(&mut self, filter: OcclusionFilter, rgb: &mut [[u8; 4]]) {
         let half = (
             filter.half_width_px as usize,
             filter.half_height_px as usize,
         );
-        let limit = |c: &Candidate| f64::from(c.depth_q) * (1.0 - filter.tolerance);
-        self.contested.clear();
-        for (k, c) in self.candidates.iter().enumerate() {
-            if self.map.contested(c.at(), half, limit(c)) {
-                self.contested.push(k as u32);
+        self.sweep.hidden(half, filter.tolerance, |pixel| {
+            if let Some(c) = rgb.get_mut(pixel as usize) {
+                *c = NO_COLOR;
             }
-        }
-        if self.contested.is_empty() {
-            return;
-        }
-        for c in &self.candidates {
-            self.map.lower_fine_if_needed(c.at(), c.depth_q);
-        }
-        for &k in &self.contested {
-            let c = &self.candidates[k as usize];
-            if self.map.occluded(c.at(), half, limit(c)) {
-                rgb[self.candidate_pixels[k as usize] as usize] = NO_COLOR;
-            }
-        }
+        });
     }
 }
 

@@ -88,7 +88,10 @@ pub use camera::{
     KINECT_V2_DEPTH_HEIGHT_PX, KINECT_V2_DEPTH_WIDTH_PX, MAX_DISTORTION_COEFFICIENT,
     MAX_FOCAL_SIDES, MAX_IMAGE_SIDE_PX,
 };
-pub use cloud::{CloudBuilder, CloudConfig, OcclusionFilter, TexturedCloud, TexturedPoint};
+pub use cloud::{
+    CloudBuilder, CloudConfig, MAX_OCCLUSION_HALF_WINDOW_PX, OcclusionFilter, TexturedCloud,
+    TexturedPoint,
+};
 pub use depth::{
     DEPTH_UNIT_MM_M, DEPTH_UNIT_TUM_M, DepthImage, decode_color_image, decode_depth_image,
     read_color_image, read_depth_image, write_depth_pgm, write_depth_png,

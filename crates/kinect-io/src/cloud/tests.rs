@@ -114,9 +114,6 @@ fn occlusion_filter_matches_a_brute_force_reference() {
         DepthImage::new(d.width, d.height, 0.001, vec![900; d.pixel_count()]).expect("size");
     builder.build(&near_wall, &frame.color).expect("ok");
     let cloud = builder.build(&frame.depth, &frame.color).expect("ok");
-    // Both steps of the test ran: some points were contested and went to the fine level.
-    assert!(!builder.occlusion.contested.is_empty());
-    assert!(builder.occlusion.contested.len() < builder.occlusion.candidates.len());
     // Reference: every point's colour pixel and colour-camera depth, then for each point
     // the nearest depth of any point whose colour pixel is within the window.
     let t = calibration.depth_to_color().expect("ok").expect("rigid");
@@ -138,7 +135,7 @@ fn occlusion_filter_matches_a_brute_force_reference() {
         i64::from(filter.half_width_px),
         i64::from(filter.half_height_px),
     );
-    let mut checked = 0;
+    let (mut checked, mut hidden) = (0, 0);
     for (i, proj) in projected.iter().enumerate() {
         let (Some(p), Some((u, v, z))) = (cloud.point(i), proj) else {
             continue;
@@ -160,8 +157,14 @@ fn occlusion_filter_matches_a_brute_force_reference() {
             "point at {u},{v} z {z} nearest {m}"
         );
         checked += 1;
+        hidden += usize::from(occluded);
     }
     assert!(checked > 10_000, "{checked}");
+    // The frame has occlusion to find, and most points are seen.
+    assert!(
+        hidden > 100 && hidden < checked / 4,
+        "{hidden} of {checked}"
+    );
 }
 
 #[test]
@@ -302,4 +305,40 @@ fn a_hand_made_cloud_checks_its_inputs_and_keeps_them() {
     assert!(matches!(short, Err(KinectError::SizeMismatch { .. })));
     let short = TexturedCloud::new(camera, depths, &colours[1..], Isometry3::identity());
     assert!(matches!(short, Err(KinectError::SizeMismatch { .. })));
+}
+
+#[test]
+fn filter_settings_out_of_range_are_refused_by_name() {
+    let calibration = Calibration::kinect_v2();
+    let with = |filter: OcclusionFilter| CloudConfig {
+        occlusion_filter: Some(filter),
+        ..CloudConfig::default()
+    };
+    let widest = OcclusionFilter {
+        half_width_px: MAX_OCCLUSION_HALF_WINDOW_PX,
+        half_height_px: MAX_OCCLUSION_HALF_WINDOW_PX,
+        ..OcclusionFilter::default()
+    };
+    assert!(CloudBuilder::new(&calibration, with(widest)).is_ok());
+    for bad in [
+        OcclusionFilter {
+            half_width_px: MAX_OCCLUSION_HALF_WINDOW_PX + 1,
+            ..OcclusionFilter::default()
+        },
+        OcclusionFilter {
+            half_height_px: u32::MAX,
+            ..OcclusionFilter::default()
+        },
+        OcclusionFilter {
+            tolerance: f64::NAN,
+            ..OcclusionFilter::default()
+        },
+    ] {
+        match CloudBuilder::new(&calibration, with(bad)) {
+            Err(KinectError::InvalidParameter { name, .. }) => {
+                assert!(name.starts_with("occlusion filter"), "{name}");
+            }
+            other => panic!("{bad:?}: {:?}", other.err()),
+        }
+    }
 }
