@@ -8,14 +8,15 @@
 #![allow(clippy::expect_used, clippy::missing_panics_doc)]
 
 use std::hint::black_box;
-use std::path::{Path, PathBuf};
 
 use criterion::{Criterion, criterion_group, criterion_main};
+
+#[path = "common/real_frames.rs"]
+mod real_frames;
 use treemocap::kinect_io::synth::{self, SynthConfig};
 use treemocap::kinect_io::{
-    Calibration, CameraModel, CloudBuilder, CloudConfig, DEPTH_UNIT_MM_M, DEPTH_UNIT_TUM_M,
-    DepthImage, Distortion, Extrinsics, Freenect2ColorParams, Freenect2IrParams, LiftConfig,
-    ProjectionConfig, RegistrationModel, project_cloud, read_color_image, read_depth_image,
+    Calibration, CloudBuilder, CloudConfig, DepthImage, Freenect2ColorParams, Freenect2IrParams,
+    LiftConfig, ProjectionConfig, project_cloud,
 };
 use treemocap::nalgebra::Isometry3;
 
@@ -154,106 +155,42 @@ fn kinect_io(c: &mut Criterion) {
     group.finish();
 }
 
-/// `../shared/data/kinect`, or `None` (with the reason printed) when it is not there.
-fn shared_kinect_data() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kinect");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "skipped real-frame cloud benches: {} is absent",
-            dir.display()
-        );
-        None
-    }
-}
-
-/// The numbers of the flow list after `key` in a ROS `camera_info` YAML file
-/// (`data: [a, b, ...]`, possibly over several lines).
-fn yaml_list(text: &str, key: &str) -> Vec<f64> {
-    let rest = &text[text.find(key).expect("key in camera_info")..];
-    let open = rest.find('[').expect("a list");
-    let close = rest.find(']').expect("a list");
-    rest[open + 1..close]
-        .split(',')
-        .map(|v| v.trim().parse().expect("a number"))
-        .collect()
-}
-
-/// A camera from a ROS `camera_info` YAML file.
-fn ros_camera(path: &Path) -> CameraModel {
-    let text = std::fs::read_to_string(path).expect("camera_info readable");
-    let k = yaml_list(&text, "camera_matrix");
-    let d = yaml_list(&text, "distortion_coefficients");
-    let size = |key: &str| -> u32 {
-        let line = text.lines().find(|l| l.starts_with(key)).expect("size");
-        line[key.len()..].trim().parse().expect("a size")
-    };
-    CameraModel {
-        width: size("image_width:"),
-        height: size("image_height:"),
-        fx: k[0],
-        fy: k[4],
-        cx: k[2],
-        cy: k[5],
-        distortion: Distortion::from_opencv(&d).expect("8 coefficients"),
-    }
-}
-
-/// A 4x4 little-endian f64 `.npy` matrix (NumPy format 1.0, C order) as a rigid transform,
-/// inverted: the file named `depth_to_rgb_transformation.npy` maps colour to depth. Checked
-/// on its frame: with the inverse, the depth edges (jumps over 3 cm) project onto colour
-/// edges (mean Sobel magnitude 36.7 at no shift, best within 8 px) and not with the matrix
-/// as given (26.7, best at the 16 px edge of the search).
-fn npy_transform(path: &Path) -> Extrinsics {
-    let bytes = std::fs::read(path).expect("npy readable");
-    let header = usize::from(u16::from_le_bytes([bytes[8], bytes[9]]));
-    let data = &bytes[10 + header..];
-    let m: Vec<f64> = data
-        .chunks_exact(8)
-        .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
-        .collect();
-    let as_given = Extrinsics {
-        rotation: [[m[0], m[1], m[2]], [m[4], m[5], m[6]], [m[8], m[9], m[10]]],
-        translation_m: [m[3], m[7], m[11]],
-    };
-    Extrinsics::from_isometry(&as_given.to_isometry().expect("a rotation").inverse())
-}
-
 /// Issue 23: the textured cloud of real frames, side by side with Open3D
 /// (`crates/kinect-io/fixtures/open3d_cloud_timing.py` times the same frames).
 fn real_frames(c: &mut Criterion) {
-    let Some(data) = shared_kinect_data() else {
+    let Some(data) = real_frames::shared_kinect_data() else {
+        println!("skipped real-frame cloud benches: ../shared/data/kinect is absent");
         return;
     };
     let mut group = c.benchmark_group("kinect_io");
-    let tum = data.join("slambook_ch7_tum");
-    let color = read_color_image(&tum.join("1.png")).expect("TUM colour");
-    let depth = read_depth_image(&tum.join("1_depth.png"), DEPTH_UNIT_TUM_M).expect("TUM depth");
-    let mut builder =
-        CloudBuilder::new(&Calibration::tum_default(), CloudConfig::default()).expect("valid");
-    let mut cloud = builder.build(&depth, &color).expect("valid frame");
+    let tum = real_frames::tum(&data).expect("TUM frame");
+    let (color, depth) = (&tum.color, &tum.depth);
+    let mut builder = CloudBuilder::new(&tum.calibration, CloudConfig::default()).expect("valid");
+    let mut cloud = builder.build(depth, color).expect("valid frame");
     group.bench_function("cloud_tum_registered_640x480", |b| {
-        b.iter(|| builder.build_into(&depth, &color, &mut cloud).expect("ok"));
+        b.iter(|| builder.build_into(depth, color, &mut cloud).expect("ok"));
     });
     group.bench_function("cloud_tum_registered_new_cloud_640x480", |b| {
-        b.iter(|| black_box(builder.build(&depth, &color).expect("ok")));
+        b.iter(|| black_box(builder.build(depth, color).expect("ok")));
+    });
+    // Azure Kinect frame with its depth registered to the colour camera (1280x720), as the
+    // Azure Kinect SDK's transformation gives it and Open3D takes it.
+    let registered = real_frames::azure_registered(&data).expect("registered Azure frame");
+    let (color_r, depth_r) = (&registered.color, &registered.depth);
+    let mut builder =
+        CloudBuilder::new(&registered.calibration, CloudConfig::default()).expect("valid");
+    let mut cloud = builder.build(depth_r, color_r).expect("valid frame");
+    group.bench_function("cloud_azure_registered_1280x720", |b| {
+        b.iter(|| {
+            builder
+                .build_into(depth_r, color_r, &mut cloud)
+                .expect("ok")
+        });
     });
     // Azure Kinect, WFOV 2x2 binned depth (512x512) and 720p colour, rational distortion
     // on both cameras, rigid registration.
-    let azure = data.join("cameramodels_azure_kinect");
-    let calibration = Calibration {
-        depth_camera: ros_camera(&azure.join("k4a_depth_camera_info.yaml")),
-        color_camera: ros_camera(&azure.join("k4a_rgb_camera_info.yaml")),
-        registration: RegistrationModel::Rigid(npy_transform(
-            &azure.join("depth_to_rgb_transformation.npy"),
-        )),
-        depth_unit_m: DEPTH_UNIT_MM_M,
-        depth_offset_m: 0.0,
-    };
-    let color = read_color_image(&azure.join("k4a_rgb_image_raw.jpg")).expect("colour");
-    let depth =
-        read_depth_image(&azure.join("k4a_depth_image_raw.png"), DEPTH_UNIT_MM_M).expect("depth");
+    let azure = real_frames::azure(&data).expect("Azure Kinect frame");
+    let (calibration, color, depth) = (&azure.calibration, &azure.color, &azure.depth);
     for (name, config) in [
         ("cloud_azure_wfov_rigid_512x512", CloudConfig::default()),
         (
@@ -264,10 +201,10 @@ fn real_frames(c: &mut Criterion) {
             },
         ),
     ] {
-        let mut builder = CloudBuilder::new(&calibration, config).expect("valid");
-        let mut cloud = builder.build(&depth, &color).expect("valid frame");
+        let mut builder = CloudBuilder::new(calibration, config).expect("valid");
+        let mut cloud = builder.build(depth, color).expect("valid frame");
         group.bench_function(name, |b| {
-            b.iter(|| builder.build_into(&depth, &color, &mut cloud).expect("ok"));
+            b.iter(|| builder.build_into(depth, color, &mut cloud).expect("ok"));
         });
     }
     group.finish();
