@@ -10,9 +10,10 @@ use std::process::Command;
 use treemocap::branch_angles::csv::trajectories_to_csv;
 use treemocap::branch_angles::synthetic;
 
-const PROGRAMS: [&str; 7] = [
+const PROGRAMS: [&str; 8] = [
     "pipeline",
     "capture_to_cloud",
+    "cloud_timing",
     "track_markers",
     "branch_angles",
     "estimate_modal",
