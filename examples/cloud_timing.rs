@@ -11,14 +11,16 @@
 //! Prints one line: `ours_<frame>: median M ms (quartiles Q1-Q3, fastest F)`. The images are
 //! read before timing; each run is `CloudBuilder::build_into` into one reused cloud.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::{Parser, ValueEnum};
-use treemocap::kinect_io::{CloudBuilder, CloudConfig, write_depth_png};
-
-#[path = "../benches/common/real_frames.rs"]
-mod real_frames;
+use treemocap::image::RgbImage;
+use treemocap::kinect_io::{
+    Calibration, CloudBuilder, CloudConfig, DEPTH_UNIT_MM_M, DEPTH_UNIT_TUM_M, DepthImage,
+    Extrinsics, read_color_image, read_depth_image, read_npy_transform, register_to_color,
+    write_depth_png,
+};
 
 mod common;
 
@@ -62,25 +64,67 @@ fn main() -> std::process::ExitCode {
     common::run("cloud_timing", || run(&args))
 }
 
+/// One frame: its calibration, depth and colour.
+type Frame = (Calibration, DepthImage, RgbImage);
+
+/// The Azure Kinect frame (`cameramodels_azure_kinect/`): its ROS camera infos, and the
+/// file named `depth_to_rgb_transformation.npy`, which maps colour to depth (inverted here;
+/// see `benches/kinect_io.rs`).
+fn azure(data: &Path) -> Result<Frame, Box<dyn std::error::Error>> {
+    let dir = data.join("cameramodels_azure_kinect");
+    let color_to_depth = read_npy_transform(&dir.join("depth_to_rgb_transformation.npy"))?;
+    let calibration = Calibration::from_ros_camera_infos(
+        &dir.join("k4a_depth_camera_info.yaml"),
+        &dir.join("k4a_rgb_camera_info.yaml"),
+        Extrinsics::from_isometry(&color_to_depth.to_isometry()?.inverse()),
+        DEPTH_UNIT_MM_M,
+    )?;
+    Ok((
+        calibration,
+        read_depth_image(&dir.join("k4a_depth_image_raw.png"), DEPTH_UNIT_MM_M)?,
+        read_color_image(&dir.join("k4a_rgb_image_raw.jpg"))?,
+    ))
+}
+
+/// The Azure Kinect frame with its depth registered to the colour camera.
+fn azure_registered(data: &Path) -> Result<Frame, Box<dyn std::error::Error>> {
+    let (calibration, depth, color) = azure(data)?;
+    let cloud = CloudBuilder::new(&calibration, CloudConfig::default())?.build(&depth, &color)?;
+    let (registered, depth) = register_to_color(&cloud, &calibration, DEPTH_UNIT_MM_M)?;
+    Ok((registered, depth, color))
+}
+
+/// The TUM frame with TUM's default calibration.
+fn tum(data: &Path) -> Result<Frame, Box<dyn std::error::Error>> {
+    let dir = data.join("slambook_ch7_tum");
+    Ok((
+        Calibration::tum_default(),
+        read_depth_image(&dir.join("1_depth.png"), DEPTH_UNIT_TUM_M)?,
+        read_color_image(&dir.join("1.png"))?,
+    ))
+}
+
 fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let data = match &args.data {
         Some(dir) => dir.clone(),
-        None => real_frames::shared_kinect_data()
-            .ok_or("../shared/data/kinect is absent; give --data DIR")?,
+        None => {
+            let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kinect");
+            if !dir.is_dir() {
+                return Err(format!("{} is absent; give --data DIR", dir.display()).into());
+            }
+            dir
+        }
     };
     if let Some(path) = &args.write_registered_depth {
-        let frame = real_frames::azure_registered(&data)?;
-        write_depth_png(&frame.depth, path)?;
+        let (_, depth, _) = azure_registered(&data)?;
+        write_depth_png(&depth, path)?;
         eprintln!("wrote {}", path.display());
         return Ok(());
     }
-    let (label, frame) = match args.frame {
-        Which::Tum => ("ours_tum_640x480", real_frames::tum(&data)?),
-        Which::Azure => ("ours_azure_wfov_512x512", real_frames::azure(&data)?),
-        Which::AzureRegistered => (
-            "ours_azure_registered_1280x720",
-            real_frames::azure_registered(&data)?,
-        ),
+    let (label, (calibration, depth, color)) = match args.frame {
+        Which::Tum => ("ours_tum_640x480", tum(&data)?),
+        Which::Azure => ("ours_azure_wfov_512x512", azure(&data)?),
+        Which::AzureRegistered => ("ours_azure_registered_1280x720", azure_registered(&data)?),
     };
     let config = CloudConfig {
         occlusion_filter: if args.no_filter {
@@ -90,12 +134,12 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         },
         ..CloudConfig::default()
     };
-    let mut builder = CloudBuilder::new(&frame.calibration, config)?;
-    let mut cloud = builder.build(&frame.depth, &frame.color)?;
+    let mut builder = CloudBuilder::new(&calibration, config)?;
+    let mut cloud = builder.build(&depth, &color)?;
     let mut times_ms: Vec<f64> = Vec::with_capacity(args.runs as usize);
     for _ in 0..args.runs {
         let t = Instant::now();
-        builder.build_into(&frame.depth, &frame.color, &mut cloud)?;
+        builder.build_into(&depth, &color, &mut cloud)?;
         times_ms.push(t.elapsed().as_secs_f64() * 1e3);
     }
     times_ms.sort_by(f64::total_cmp);

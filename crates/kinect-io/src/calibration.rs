@@ -228,6 +228,19 @@ impl Calibration {
         }
     }
 
+    /// The calibration of this camera pair's frames once their depth is registered to the
+    /// colour camera ([`crate::ProjectionImage::depth_image`] of the cloud projected onto
+    /// it): the colour camera for both, already registered, depth in `depth_unit_m`.
+    pub fn registered_to_color(&self, depth_unit_m: f64) -> Self {
+        Self {
+            depth_camera: self.color_camera,
+            color_camera: self.color_camera,
+            registration: RegistrationModel::AlreadyRegistered,
+            depth_unit_m,
+            depth_offset_m: 0.0,
+        }
+    }
+
     /// The depth-to-colour transform of a rigid or already-registered calibration (identity
     /// for the latter); `None` for libfreenect2's polynomial model.
     ///

@@ -74,6 +74,7 @@ mod ply;
 mod pointcloud;
 mod projection;
 mod recording;
+mod ros_calibration;
 mod scalar;
 mod still;
 pub mod synth;
@@ -106,11 +107,13 @@ pub use ply::{PlyFormat, encode_ply, parse_ply, read_ply, write_ply};
 pub use pointcloud::{PointCloud, parse_xyz, read_point_cloud, read_xyz, write_xyz};
 pub use projection::{
     LiftConfig, MAX_AUTO_SPLAT_RADIUS_PX, ProjectionConfig, ProjectionImage, Splat, project_cloud,
+    register_to_color,
 };
 pub use recording::{
     CALIBRATION_FILE, ColorFormat, FRAMES_FILE, FRAMES_HEADER, Frame, FrameEntry, Layout,
     Recording, RecordingWriter, TUM_MAX_DIFFERENCE_S, associate,
 };
+pub use ros_calibration::{read_npy_transform, read_ros_camera_info};
 pub use still::{STILL_SPREAD_M, StillCloud};
 
 /// The types most programs need, plus nalgebra's `Isometry3`, `Point2`, `Point3`.

@@ -6,8 +6,10 @@
 use image::RgbImage;
 use nalgebra::{Isometry3, Point2, Point3};
 
+use crate::calibration::Calibration;
 use crate::camera::CameraModel;
 use crate::cloud::TexturedCloud;
+use crate::depth::DepthImage;
 use crate::error::{KinectError, Result};
 use crate::zbuffer;
 
@@ -179,6 +181,39 @@ pub fn project_cloud(
     Ok(out)
 }
 
+/// A two-camera frame with its depth registered to the colour camera: the frame's cloud
+/// (built with `calibration`) projected onto the colour camera, as a depth image on its
+/// pixels in `unit_m` steps ([`ProjectionImage::depth_image`]), with the calibration of
+/// such frames ([`Calibration::registered_to_color`]). This is what the Azure Kinect SDK's
+/// `k4a_transformation_depth_image_to_color_camera` gives, and what tools that take depth
+/// and colour on the same pixels need.
+///
+/// # Errors
+/// [`KinectError::InvalidParameter`] for libfreenect2's polynomial model (not a rigid
+/// transform), an invalid colour camera or unit; as [`project_cloud`].
+pub fn register_to_color(
+    cloud: &TexturedCloud,
+    calibration: &Calibration,
+    unit_m: f64,
+) -> Result<(Calibration, DepthImage)> {
+    let depth_to_color = calibration.depth_to_color()?.ok_or_else(|| {
+        KinectError::param(
+            "registration",
+            "libfreenect2's model has no rigid depth-to-colour transform",
+        )
+    })?;
+    let image = project_cloud(
+        cloud,
+        &calibration.color_camera,
+        &depth_to_color,
+        &ProjectionConfig::default(),
+    )?;
+    Ok((
+        calibration.registered_to_color(unit_m),
+        image.depth_image(unit_m)?,
+    ))
+}
+
 impl ProjectionImage {
     /// Re-render for a new cloud with the same camera and placement, reusing every buffer.
     ///
@@ -319,6 +354,39 @@ impl ProjectionImage {
         }
         let key = self.keys[v as usize * self.camera.width as usize + u as usize];
         self.decode(key).map(|(z, _)| z)
+    }
+
+    /// The depth this image shows, as a depth image on its camera's pixels: each pixel's
+    /// depth in `unit_m` steps, rounded (0 where no point shows, and where the depth is
+    /// beyond 65,535 steps). With a cloud projected onto its colour camera this is the depth
+    /// registered to colour, as the Azure Kinect SDK's
+    /// `k4a_transformation_depth_image_to_color_camera` gives it, for tools that take depth
+    /// and colour on the same pixels (Open3D's `create_from_rgbd_image`).
+    ///
+    /// # Errors
+    /// [`KinectError::InvalidParameter`] for a unit that is not positive and finite.
+    pub fn depth_image(&self, unit_m: f64) -> Result<DepthImage> {
+        if !(unit_m.is_finite() && unit_m > 0.0) {
+            return Err(KinectError::param(
+                "depth unit",
+                format!("{unit_m} m must be positive and finite"),
+            ));
+        }
+        let (w, h) = (self.camera.width, self.camera.height);
+        let values = (0..h)
+            .flat_map(|v| (0..w).map(move |u| (u, v)))
+            .map(|(u, v)| {
+                self.depth_m(u, v).map_or(0, |z| {
+                    let steps = (z / unit_m).round();
+                    if steps <= f64::from(u16::MAX) {
+                        steps as u16
+                    } else {
+                        0
+                    }
+                })
+            })
+            .collect();
+        DepthImage::new(w, h, unit_m, values)
     }
 
     /// Number of pixels that show a point.
@@ -482,7 +550,7 @@ fn median(values: &mut [f64]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::Calibration;
+    use crate::calibration::{Calibration, RegistrationModel};
     use crate::cloud::{CloudBuilder, CloudConfig};
     use crate::depth::DepthImage;
     use approx::assert_relative_eq;
@@ -520,6 +588,49 @@ mod tests {
             .expect("ok")
             .build(&depth, &color)
             .expect("ok")
+    }
+
+    #[test]
+    fn registering_to_colour_gives_depth_on_the_colour_pixels() {
+        let (cloud, calibration) = scene();
+        let (registered, depth) = register_to_color(&cloud, &calibration, 0.001).expect("ok");
+        let c = calibration.color_camera;
+        assert_eq!(registered.depth_camera, c);
+        assert_eq!(
+            registered.registration,
+            RegistrationModel::AlreadyRegistered
+        );
+        assert_eq!((depth.width(), depth.height()), (c.width, c.height));
+        // Every point the colour camera sees is on its pixel at its colour-camera depth
+        // (the nearer surface where two land on one pixel).
+        let t = calibration.depth_to_color().expect("ok").expect("rigid");
+        let (mut checked, mut near) = (0, 0);
+        for (_, p) in cloud.iter_valid() {
+            let q = t * p.position_m;
+            let Some((u, v)) = c.project(&q).and_then(|px| c.pixel_at(&px)) else {
+                continue;
+            };
+            let shown = f64::from(depth.values()[(v * c.width + u) as usize]) * 1e-3;
+            assert!(
+                shown > 0.0 && shown <= q.z + 0.002,
+                "{u},{v}: {shown} vs {}",
+                q.z
+            );
+            checked += 1;
+            near += usize::from((shown - q.z).abs() < 0.002);
+        }
+        assert!(
+            checked > 100_000 && near * 10 > checked * 9,
+            "{near} of {checked}"
+        );
+        let ir = crate::freenect2::Freenect2IrParams::kinect_v2_typical();
+        let colour = crate::freenect2::Freenect2ColorParams::from_pinhole_baseline(
+            &ir, 1081.37, 959.5, 539.5, 52.0,
+        );
+        let mut freenect2 = calibration.clone();
+        freenect2.registration = Calibration::freenect2(ir, colour).registration;
+        assert!(register_to_color(&cloud, &freenect2, 0.001).is_err());
+        assert!(own_view(&cloud, &calibration).depth_image(0.0).is_err());
     }
 
     #[test]

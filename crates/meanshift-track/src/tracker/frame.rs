@@ -296,6 +296,15 @@ mod tests {
         }
     }
 
+    /// True when every observation of track `k` after the first frame is `tracked`.
+    fn all_tracked(t: &Tracker, k: usize) -> bool {
+        t.tracks[k]
+            .observations
+            .iter()
+            .skip(1)
+            .all(|o| o.status == TrackStatus::Tracked)
+    }
+
     #[test]
     fn a_track_standing_on_a_once_seen_look_alike_away_from_home_is_parked() -> Result<()> {
         let (mut t, side, home) = setup()?;
@@ -321,13 +330,7 @@ mod tests {
         assert_eq!(t.markers[0].misses, PARKED_FRAMES);
         assert_eq!(t.markers[0].filter.position, home);
         // B, standing still at its home all along, is untouched.
-        assert!(
-            t.tracks[1]
-                .observations
-                .iter()
-                .skip(1)
-                .all(|o| o.status == TrackStatus::Tracked)
-        );
+        assert!(all_tracked(&t, 1));
         Ok(())
     }
 
@@ -376,13 +379,7 @@ mod tests {
         park(&mut t, held, 2 * PARKED_FRAMES);
         t.learn_parked();
         assert_eq!(t.markers[0].misses, 0);
-        assert!(
-            t.tracks[0]
-                .observations
-                .iter()
-                .skip(1)
-                .all(|o| o.status == TrackStatus::Tracked)
-        );
+        assert!(all_tracked(&t, 0));
         Ok(())
     }
 }
