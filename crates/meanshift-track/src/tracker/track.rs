@@ -61,6 +61,13 @@ pub struct Observation {
     /// matches the marker's and how much of the marker's area it holds. For the kernel (RGB)
     /// model, the Bhattacharyya coefficient instead of the weight share. 1 for user-set
     /// centres; 0 when nothing was measured (`predicted`, `lost`).
+    ///
+    /// What it is worth, measured on the stress sequences (`docs/validation.md`, "What a
+    /// confidence value means"): a `tracked` frame at 0.8 or more was within 3 px of the
+    /// truth in 98–99.7 % of frames; below 0.6, found frames were more often wrong than
+    /// right; `recovered` frames were more than 8 px off in 6–15 % of frames even at high
+    /// confidence (detection after a loss can take a look-alike). Take `recovered` frames
+    /// as provisional until the track is `tracked` again.
     pub confidence: f64,
 }
 
