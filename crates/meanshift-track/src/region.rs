@@ -291,18 +291,11 @@ impl Region {
             let start = y as usize * stride + rect.x as usize * 3;
             let row = &raw[start..start + width * 3];
             let out = &mut self.weights[r * width..(r + 1) * width];
-            match previous {
-                None => {
-                    for (o, p) in out.iter_mut().zip(row.chunks_exact(3)) {
-                        *o = values.get(entry(p)).copied().unwrap_or(0.0);
-                    }
-                }
-                Some((s, prev)) => {
-                    for (o, p) in out.iter_mut().zip(row.chunks_exact(3)) {
-                        *o = values.get(entry(p)).copied().unwrap_or(0.0);
-                    }
-                    s.raise_row(out, row, &prev[start..start + width * 3]);
-                }
+            for (o, p) in out.iter_mut().zip(row.chunks_exact(3)) {
+                *o = values.get(entry(p)).copied().unwrap_or(0.0);
+            }
+            if let Some((s, prev)) = previous {
+                s.raise_row(out, row, &prev[start..start + width * 3]);
             }
             if kernel {
                 let out = &mut self.bins[r * width..(r + 1) * width];
