@@ -12,19 +12,31 @@ still on its own target (within 20 px; neighbours are 150 px apart) and that sha
 release (frames 229-247), and the frames reported as found (tracked or recovered) more than
 8 px off. All 28 targets are tracked at once, 44x44 windows as in the issue.
 
+With `--subsets SEED COUNT`, it also tracks, with our tracker only, each row of 7 alone and
+COUNT random selections of 7 of the 28 targets (and two of 12) drawn with SEED, as users who
+select only some targets would, and prints each selection's share within 4 px and frames
+found more than 8 px off, and the totals.
+
 Needs opencv-python-headless and numpy (not needed by CI). Run from the repository root:
-    python3 crates/meanshift-track/eval/vibration_frames.py [FRAMES_DIR]
+    python3 crates/meanshift-track/eval/vibration_frames.py [FRAMES_DIR] [--subsets SEED COUNT]
 """
 import json
 import math
 import os
+import random
 import subprocess
 import sys
 import tempfile
 
 import cv2
 
-FRAMES = sys.argv[1] if len(sys.argv) > 1 else "../shared/data/tracking/vibration_frames"
+ARGS = sys.argv[1:]
+SUBSETS = None
+if "--subsets" in ARGS:
+    k = ARGS.index("--subsets")
+    SUBSETS = (int(ARGS[k + 1]), int(ARGS[k + 2]))
+    del ARGS[k:k + 3]
+FRAMES = ARGS[0] if ARGS else "../shared/data/tracking/vibration_frames"
 FIRST, LAST = 201, 260
 HUB = (621, 454)  # the top row's hub target on frame 201 (pixels)
 ROWS_Y = (455, 930, 1415, 1905)
@@ -99,23 +111,54 @@ def score(out, truth):
     return 100 * within / n, 100 * within4 / n, 100 * own / n, 100 * rel_own / rel, found_far, n
 
 
+def init_of(truth, keys):
+    return [{"id": k, "x": truth[k][0][0] - WINDOW[0] // 2, "y": truth[k][0][1] - WINDOW[1] // 2,
+             "w": WINDOW[0], "h": WINDOW[1]} for k in keys]
+
+
+def run(init, tmp, extra=()):
+    init_path = os.path.join(tmp, "init.json")
+    with open(init_path, "w") as f:
+        json.dump(init, f)
+    out_path = os.path.join(tmp, "out.json")
+    subprocess.run(["cargo", "run", "--release", "-q", "--example", "track_markers", "--",
+                    FRAMES, init_path, "--model", "gray", "--out", out_path] + list(extra),
+                   check=True, stderr=subprocess.DEVNULL)
+    with open(out_path) as f:
+        return json.load(f)
+
+
+def subsets(truth, seed, count):
+    keys = list(truth.keys())
+    rng = random.Random(seed)
+    rows = sorted({k.split("x")[0] for k in keys})
+    chosen = [[k for k in keys if k.split("x")[0] == r] for r in rows]
+    chosen += [sorted(rng.sample(keys, 7)) for _ in range(count)]
+    chosen += [sorted(rng.sample(keys, 12)) for _ in range(2)]
+    n_all = within4_all = far_all = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        for keys in chosen:
+            _, w4, _, _, far, n = score(run(init_of(truth, keys), tmp), truth)
+            n_all += n
+            within4_all += w4 * n / 100
+            far_all += far
+            print("  %-70s %5.1f %% within 4 px, %d found more than 8 px off"
+                  % (",".join(keys), w4, far))
+    print("selections (seed %d, %d of 7): %d marker-frames, %.2f %% within 4 px, %d found "
+          "(tracked or recovered) more than 8 px off"
+          % (seed, count, n_all, 100 * within4_all / n_all, far_all))
+
+
 def main():
     frames = [load(i) for i in range(FIRST, LAST + 1)]
     targets = find_targets(frames[0])
     truth = truth_paths(frames, targets)
-    init = [{"id": k, "x": t[0] - WINDOW[0] // 2, "y": t[1] - WINDOW[1] // 2,
-             "w": WINDOW[0], "h": WINDOW[1]} for k, (t, _) in truth.items()]
+    if SUBSETS is not None:
+        subsets(truth, *SUBSETS)
+    init = init_of(truth, list(truth.keys()))
     with tempfile.TemporaryDirectory() as tmp:
-        init_path = os.path.join(tmp, "init.json")
-        with open(init_path, "w") as f:
-            json.dump(init, f)
         for name, extra in (("ours", []), ("plain mean-shift (--paper)", ["--paper"])):
-            out_path = os.path.join(tmp, "out.json")
-            subprocess.run(["cargo", "run", "--release", "-q", "--example", "track_markers", "--",
-                            FRAMES, init_path, "--model", "gray", "--out", out_path] + extra,
-                           check=True, stderr=subprocess.DEVNULL)
-            with open(out_path) as f:
-                out = json.load(f)
+            out = run(init, tmp, extra)
             w, w4, o, r, far, n = score(out, truth)
             print("%-28s %d marker-frames: %.1f %% within 3 px, %.1f %% within 4 px, "
                   "%.1f %% on their own target, %.1f %% over the release, %d found (tracked or "

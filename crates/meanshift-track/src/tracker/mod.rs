@@ -184,6 +184,18 @@ const MERGED_WINDOWS: f64 = 0.75;
 const SAME_LOOK_RGB: f32 = 40.0;
 /// Rate of the running means of how alike two markers move.
 const COHERENCE_RATE: f64 = 0.2;
+/// Least number of found markers, seen moving alike with a jumping marker, whose agreement
+/// can overrule its quick pass.
+const COHERENT_WITNESSES: usize = 2;
+/// Least squared correlation of two markers' displacements for one to tell the other's.
+const PROPORTIONAL_R2: f64 = 0.8;
+/// Largest ratio of two markers' displacements for one to tell the other's.
+const PROPORTIONAL_GAIN: f64 = 4.0;
+/// Most witnesses asked, the nearest first.
+const COHERENT_NEAREST: usize = 4;
+/// Distance (windows) from their mean displacement beyond which a jumping marker's
+/// displacement disagrees with them.
+const INCOHERENT_WINDOWS: f64 = 1.0;
 /// Least running mean of the two markers' squared displacements (px^2 per frame) for their
 /// likeness to mean anything (static markers are alike by default).
 const COHERENCE_MIN_MOTION_PX2: f64 = 1.0;
@@ -381,19 +393,27 @@ pub struct Tracker {
     coherence: Vec<Coherence>,
 }
 
-/// How alike two markers have moved: running means of the squared difference of their
-/// displacements and of the sum of their squared displacements, over frames both were found
+/// How alike marker `a` has moved with marker `b` (entry `a n + b`): running means of the
+/// squared difference of their displacements and of the sum of their squared
+/// displacements, and of the products `da·db`, `da·da`, `db·db`, over frames both were found
 /// in consecutively.
 #[derive(Debug, Clone, Copy, Default)]
 struct Coherence {
     difference_px2: f64,
     motion_px2: f64,
+    ab_px2: f64,
+    aa_px2: f64,
+    bb_px2: f64,
 }
 
 impl Coherence {
     fn learn(&mut self, a: Vector2<f64>, b: Vector2<f64>) {
-        self.difference_px2 += COHERENCE_RATE * ((a - b).norm_squared() - self.difference_px2);
-        self.motion_px2 += COHERENCE_RATE * (a.norm_squared() + b.norm_squared() - self.motion_px2);
+        let mean = |v: &mut f64, x: f64| *v += COHERENCE_RATE * (x - *v);
+        mean(&mut self.difference_px2, (a - b).norm_squared());
+        mean(&mut self.motion_px2, a.norm_squared() + b.norm_squared());
+        mean(&mut self.ab_px2, a.dot(&b));
+        mean(&mut self.aa_px2, a.norm_squared());
+        mean(&mut self.bb_px2, b.norm_squared());
     }
 
     /// Not seen to move differently: alike (one rig, one branch, one camera shake), or not
@@ -401,6 +421,22 @@ impl Coherence {
     fn coherent(&self) -> bool {
         self.motion_px2 < COHERENCE_MIN_MOTION_PX2
             || self.difference_px2 <= COHERENCE_RATIO * self.motion_px2
+    }
+
+    /// The factor that takes `b`'s displacement to `a`'s, when both have been seen moving
+    /// (a root mean square of at least 0.15 of a window `side` a frame), along one
+    /// direction (correlation at least [`PROPORTIONAL_R2`]) and by amounts within
+    /// [`PROPORTIONAL_GAIN`] of each other: parts of one rig that turns move alike up to
+    /// their distances from the pivot.
+    fn gain(&self, side: f64) -> Option<f64> {
+        let least = (0.15 * side).powi(2);
+        let gain = self.ab_px2 / self.bb_px2.max(f64::MIN_POSITIVE);
+        (self.aa_px2 >= least
+            && self.bb_px2 >= least
+            && self.ab_px2 > 0.0
+            && self.ab_px2 * self.ab_px2 >= PROPORTIONAL_R2 * self.aa_px2 * self.bb_px2
+            && (1.0 / PROPORTIONAL_GAIN..=PROPORTIONAL_GAIN).contains(&gain))
+        .then_some(gain)
     }
 }
 
@@ -518,15 +554,33 @@ impl Tracker {
             quick.push(best);
             rejected.push(others);
         }
-        let (mut results, claimed, undecided) = self.accept_quick(&quick, &predictions);
+        let (mut results, mut claimed, mut undecided) = self.accept_quick(&quick, &predictions);
 
         // Detection in the opened gates, then one joint assignment.
-        if !undecided.is_empty() {
-            let assigned = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
-            for (&i, found) in undecided.iter().zip(assigned) {
+        let mut detection = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
+        for (&i, found) in undecided.iter().zip(&detection.chosen) {
+            results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
+        }
+        // A jump the markers it moves with did not make is looked for again, from where
+        // they say it went, and detection is done again without it (the place it took may
+        // be another's, which that one then lacked).
+        let incoherent = self.incoherent(&results);
+        if !incoherent.is_empty() {
+            for &(i, moved) in &incoherent {
+                results[i] = None;
+                let m = &mut self.markers[i];
+                m.filter.position = m.last_center + moved;
+                if !undecided.contains(&i) {
+                    undecided.push(i);
+                }
+            }
+            claimed.retain(|c| incoherent.iter().all(|&(i, _)| i != c.0));
+            detection = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
+            for (&i, found) in undecided.iter().zip(&detection.chosen) {
                 results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
             }
         }
+        self.learn_detection(&undecided, &claimed, detection);
         self.learn_look_alikes(&results, &rejected, &predictions);
         self.learn_coherence(&results);
         let merged = self.merged_markers(&results, &predictions);
@@ -653,4 +707,36 @@ fn two_red_markers() -> Result<Tracker> {
         },
     ];
     Tracker::new(TrackerConfig::default(), &frame, None, &inits)
+}
+
+#[cfg(test)]
+mod coherence_tests {
+    use super::*;
+
+    fn learnt(pairs: &[(Vector2<f64>, Vector2<f64>)]) -> Coherence {
+        let mut c = Coherence::default();
+        for _ in 0..10 {
+            for &(a, b) in pairs {
+                c.learn(a, b);
+            }
+        }
+        c
+    }
+
+    #[test]
+    fn a_gain_is_told_only_by_markers_seen_moving_in_proportion() {
+        let side = 20.0;
+        let b = Vector2::new(6.0, -3.0);
+        // Twice as far, the same way (and back): gain 2.
+        let g = learnt(&[(2.0 * b, b), (-2.0 * b, -b)]).gain(side);
+        assert!(g.is_some_and(|g| (g - 2.0).abs() < 1e-9), "{g:?}");
+        // Across each other, against each other, or too unlike in size: no gain.
+        let across = Vector2::new(3.0, 6.0);
+        assert_eq!(learnt(&[(across, b), (-across, -b)]).gain(side), None);
+        assert_eq!(learnt(&[(-b, b), (b, -b)]).gain(side), None);
+        assert_eq!(learnt(&[(6.0 * b, b), (-6.0 * b, -b)]).gain(side), None);
+        // Not seen moving enough (under 0.15 windows a frame): no gain.
+        let still = Vector2::new(1.0, 0.5);
+        assert_eq!(learnt(&[(still, still), (-still, -still)]).gain(side), None);
+    }
 }

@@ -108,7 +108,7 @@ impl Tracker {
     /// Open the gates of `undecided` markers, find candidates in them (other markers'
     /// places masked), and assign candidates (with each marker's quick-pass measurement) to
     /// markers jointly. Per undecided marker: its measurement and context correlation, or
-    /// `None`.
+    /// `None`. Nothing is learnt yet: see [`Tracker::learn_detection`].
     pub(super) fn detect_and_assign(
         &mut self,
         frame: &RgbImage,
@@ -116,7 +116,7 @@ impl Tracker {
         undecided: &[usize],
         claimed: &[Claim],
         quick: &[Option<Scored>],
-    ) -> Vec<Option<(Measured, Option<f64>)>> {
+    ) -> Detection {
         let mut candidates: Vec<Candidate> = Vec::new();
         let mut seen: Vec<Vec<(Point2<f64>, PixelRect)>> = Vec::with_capacity(undecided.len());
         for &i in undecided {
@@ -125,10 +125,20 @@ impl Tracker {
             seen.push(blobs);
         }
         let chosen = self.assign_places(&candidates, undecided, claimed, quick);
-        // A marker found far outside its normal gate has manoeuvred: the filter takes the
-        // manoeuvre, so the measurement sets the new velocity.
+        Detection { chosen, seen }
+    }
+
+    /// What detection of the `undecided` markers teaches: a marker found far outside its
+    /// normal gate has manoeuvred (the filter takes the manoeuvre, so the measurement sets
+    /// the new velocity), and what it saw in its gate and did not take is a look-alike.
+    pub(super) fn learn_detection(
+        &mut self,
+        undecided: &[usize],
+        claimed: &[Claim],
+        detection: Detection,
+    ) {
         let frame_side = f64::from(self.width.max(self.height));
-        for (&i, pick) in undecided.iter().zip(&chosen) {
+        for (&i, pick) in undecided.iter().zip(&detection.chosen) {
             let m = &mut self.markers[i];
             if let Some((q, _)) = pick
                 && (q.center - m.filter.position).norm_squared() > GATE_CHI2 * m.gate_var
@@ -138,8 +148,7 @@ impl Tracker {
                 m.filter.manoeuvre(sigma);
             }
         }
-        self.learn_gate_look_alikes(undecided, claimed, &chosen, seen);
-        chosen
+        self.learn_gate_look_alikes(undecided, claimed, &detection.chosen, detection.seen);
     }
 
     /// Marker `i`'s search gate this frame: the miss may be a manoeuvre (a release), so the
@@ -443,6 +452,13 @@ impl Tracker {
             }
         }
     }
+}
+
+/// Detection's answer for the undecided markers of a frame: per marker, its measurement and
+/// context correlation or `None`, and every place it saw in its gate.
+pub(super) struct Detection {
+    pub(super) chosen: Vec<Option<(Measured, Option<f64>)>>,
+    seen: Vec<Vec<(Point2<f64>, PixelRect)>>,
 }
 
 /// A marker's search gate in one frame.
