@@ -80,6 +80,7 @@ mod track;
 use blobs::*;
 pub use config::{MotionModel, TrackerConfig, WindowMode};
 use joint::*;
+use passes::Again;
 use state::*;
 pub use track::{DepthView, MarkerInit, Observation, Track, TrackStatus, TrackSummary};
 
@@ -562,23 +563,16 @@ impl Tracker {
             results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
         }
         // A jump the markers it moves with did not make is looked for again, from where
-        // they say it went, and detection is done again without it (the place it took may
-        // be another's, which that one then lacked).
+        // they say it went, together with the markers that may have lacked the place it took.
         let incoherent = self.incoherent(&results);
         if !incoherent.is_empty() {
-            for &(i, moved) in &incoherent {
-                results[i] = None;
-                let m = &mut self.markers[i];
-                m.filter.position = m.last_center + moved;
-                if !undecided.contains(&i) {
-                    undecided.push(i);
-                }
-            }
-            claimed.retain(|c| incoherent.iter().all(|&(i, _)| i != c.0));
-            detection = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
-            for (&i, found) in undecided.iter().zip(&detection.chosen) {
-                results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
-            }
+            let again = Again {
+                flagged: &incoherent,
+                undecided,
+                first: detection,
+                quick: &quick,
+            };
+            (undecided, detection) = self.redetect(frame, depth, again, &mut results, &mut claimed);
         }
         self.learn_detection(&undecided, &claimed, detection);
         self.learn_look_alikes(&results, &rejected, &predictions);

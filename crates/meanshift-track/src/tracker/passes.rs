@@ -128,6 +128,74 @@ impl Tracker {
         Detection { chosen, seen }
     }
 
+    /// Detection again after [`Tracker::incoherent`] flagged markers: each flagged marker is
+    /// moved to where its witnesses say it went and looked for again, together with the
+    /// undecided markers of its look within [`NEIGHBOUR_RADIUS_WINDOWS`] of it (one of them
+    /// may have lacked the place it took) and those detection did not find; the other
+    /// markers' detections stand and hold their places. `results` and `claimed` are
+    /// updated; the markers detection decided and its answer for them are returned, for
+    /// [`Tracker::learn_detection`].
+    pub(super) fn redetect(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        again: Again<'_>,
+        results: &mut [Option<Found>],
+        claimed: &mut Vec<Claim>,
+    ) -> (Vec<usize>, Detection) {
+        let Again {
+            flagged,
+            undecided,
+            first,
+            quick,
+        } = again;
+        for &(i, moved) in flagged {
+            results[i] = None;
+            let m = &mut self.markers[i];
+            m.filter.position = m.last_center + moved;
+        }
+        claimed.retain(|c| flagged.iter().all(|&(i, _)| i != c.0));
+        let near_flagged = |u: usize| {
+            flagged.iter().any(|&(f, _)| {
+                let (a, b) = (&self.markers[u], &self.markers[f]);
+                same_look(a, b)
+                    && (a.last_center - b.last_center).norm()
+                        <= NEIGHBOUR_RADIUS_WINDOWS * window_px(b)
+            })
+        };
+        let mut redo: Vec<usize> = flagged.iter().map(|f| f.0).collect();
+        let others: Vec<usize> = undecided
+            .iter()
+            .copied()
+            .filter(|&u| !redo.contains(&u) && (results[u].is_none() || near_flagged(u)))
+            .collect();
+        redo.extend(others);
+        // The rest keep what detection gave them, and hold those places.
+        let mut kept = Vec::new();
+        let mut chosen = Vec::new();
+        let mut seen = Vec::new();
+        let mut holds = claimed.clone();
+        for ((u, pick), blobs) in undecided.into_iter().zip(first.chosen).zip(first.seen) {
+            if redo.contains(&u) {
+                continue;
+            }
+            if let Some((q, _)) = pick {
+                holds.push((u, q.holds, q.center));
+            }
+            kept.push(u);
+            chosen.push(pick);
+            seen.push(blobs);
+        }
+        let second = self.detect_and_assign(frame, depth, &redo, &holds, quick);
+        for (&i, found) in redo.iter().zip(&second.chosen) {
+            results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
+        }
+        kept.extend(redo);
+        chosen.extend(second.chosen);
+        seen.extend(second.seen);
+        (kept, Detection { chosen, seen })
+    }
+
     /// What detection of the `undecided` markers teaches: a marker found far outside its
     /// normal gate has manoeuvred (the filter takes the manoeuvre, so the measurement sets
     /// the new velocity), and what it saw in its gate and did not take is a look-alike.
@@ -459,6 +527,15 @@ impl Tracker {
 pub(super) struct Detection {
     pub(super) chosen: Vec<Option<(Measured, Option<f64>)>>,
     seen: Vec<Vec<(Point2<f64>, PixelRect)>>,
+}
+
+/// What [`Tracker::redetect`] starts from: the flagged markers with the displacement their
+/// witnesses give them, and the first detection (of `undecided`).
+pub(super) struct Again<'a> {
+    pub(super) flagged: &'a [(usize, Vector2<f64>)],
+    pub(super) undecided: Vec<usize>,
+    pub(super) first: Detection,
+    pub(super) quick: &'a [Option<Scored>],
 }
 
 /// A marker's search gate in one frame.
