@@ -12,13 +12,16 @@ still on its own target (within 20 px; neighbours are 150 px apart) and that sha
 release (frames 229-247), and the frames reported as found (tracked or recovered) more than
 8 px off. All 28 targets are tracked at once, 44x44 windows as in the issue.
 
-With `--subsets SEED COUNT`, it also tracks, with our tracker only, each row of 7 alone and
+With `--subsets SEED COUNT [--window PX] [--offset PX]`, it also tracks, with our tracker only, each row of 7 alone and
 COUNT random selections of 7 of the 28 targets (and two of 12) drawn with SEED, as users who
 select only some targets would, and prints each selection's share within 4 px and frames
-found more than 8 px off, and the totals.
+found more than 8 px off, and the totals; `--window` sets those selections' window side
+(default 44) and `--offset` moves each window's centre by that many pixels along both axes,
+the signs alternating by marker.
 
 Needs opencv-python-headless and numpy (not needed by CI). Run from the repository root:
-    python3 crates/meanshift-track/eval/vibration_frames.py [FRAMES_DIR] [--subsets SEED COUNT]
+    python3 crates/meanshift-track/eval/vibration_frames.py [FRAMES_DIR] [--subsets SEED COUNT
+        [--window PX] [--offset PX]]
 """
 import json
 import math
@@ -31,11 +34,21 @@ import tempfile
 import cv2
 
 ARGS = sys.argv[1:]
-SUBSETS = None
-if "--subsets" in ARGS:
-    k = ARGS.index("--subsets")
-    SUBSETS = (int(ARGS[k + 1]), int(ARGS[k + 2]))
-    del ARGS[k:k + 3]
+
+
+def option(name, count):
+    """The `count` integers after `--name` (removed from ARGS), or None."""
+    if "--" + name not in ARGS:
+        return None
+    k = ARGS.index("--" + name)
+    values = [int(v) for v in ARGS[k + 1:k + 1 + count]]
+    del ARGS[k:k + 1 + count]
+    return values
+
+
+SUBSETS = option("subsets", 2)
+SELECTION_WINDOW = (option("window", 1) or [44])[0]
+SELECTION_OFFSET = (option("offset", 1) or [0])[0]
 FRAMES = ARGS[0] if ARGS else "../shared/data/tracking/vibration_frames"
 FIRST, LAST = 201, 260
 HUB = (621, 454)  # the top row's hub target on frame 201 (pixels)
@@ -111,9 +124,13 @@ def score(out, truth):
     return 100 * within / n, 100 * within4 / n, 100 * own / n, 100 * rel_own / rel, found_far, n
 
 
-def init_of(truth, keys):
-    return [{"id": k, "x": truth[k][0][0] - WINDOW[0] // 2, "y": truth[k][0][1] - WINDOW[1] // 2,
-             "w": WINDOW[0], "h": WINDOW[1]} for k in keys]
+def init_of(truth, keys, side=WINDOW[0], offset=0):
+    """Windows of `side` px centred on the targets, each centre moved by `offset` px along x
+    and y, with signs alternating by marker (a user does not click exactly)."""
+    return [{"id": k,
+             "x": truth[k][0][0] - side // 2 + (offset if i % 2 else -offset),
+             "y": truth[k][0][1] - side // 2 + (offset if i % 3 else -offset),
+             "w": side, "h": side} for i, k in enumerate(keys)]
 
 
 def run(init, tmp, extra=()):
@@ -138,7 +155,8 @@ def subsets(truth, seed, count):
     n_all = within4_all = far_all = 0
     with tempfile.TemporaryDirectory() as tmp:
         for keys in chosen:
-            _, w4, _, _, far, n = score(run(init_of(truth, keys), tmp), truth)
+            init = init_of(truth, keys, SELECTION_WINDOW, SELECTION_OFFSET)
+            _, w4, _, _, far, n = score(run(init, tmp), truth)
             n_all += n
             within4_all += w4 * n / 100
             far_all += far
