@@ -160,7 +160,7 @@ impl Tracker {
                 if d.norm() <= 0.5 * side {
                     return None;
                 }
-                let last = self.markers[i].last_center;
+                let last = m.last_center;
                 // What each says this marker's displacement was.
                 let mut near: Vec<(f64, Vector2<f64>)> = (0..n)
                     .filter(|&j| j != i)
@@ -490,12 +490,14 @@ mod tests {
         Ok(t)
     }
 
-    /// Each marker found moved by its displacement, with `status`.
-    fn moved_by(t: &Tracker, moves: &[(f64, TrackStatus)]) -> Vec<Option<Found>> {
+    /// Each marker found moved by its displacement along x; C (the third) with `status`,
+    /// the others tracked.
+    fn moved_by(t: &Tracker, moves: [f64; 4], status: TrackStatus) -> Vec<Option<Found>> {
         t.markers
             .iter()
             .zip(moves)
-            .map(|(m, &(dx, status))| {
+            .enumerate()
+            .map(|(k, (m, dx))| {
                 let c = m.last_center + Vector2::new(dx, 0.0);
                 let window = PixelRect::centered_at(c, 11, 11);
                 let q = Measured {
@@ -505,122 +507,57 @@ mod tests {
                     confidence: 0.95,
                     moments: None,
                 };
+                let status = if k == 2 { status } else { TrackStatus::Tracked };
                 Some((q, status, None))
             })
             .collect()
     }
 
+    /// Where the others say C went, if C's move is flagged.
+    fn c_flagged(t: &Tracker, moves: [f64; 4], status: TrackStatus) -> Option<Vector2<f64>> {
+        let results = moved_by(t, moves, status);
+        t.incoherent(&results)
+            .into_iter()
+            .find(|f| f.0 == 2)
+            .map(|f| f.1)
+    }
+
     #[test]
     fn a_jump_the_markers_it_moves_with_did_not_make_is_looked_at_again() -> Result<()> {
         use TrackStatus::{Recovered, Tracked};
-        let step = Vector2::new(STEP_PX, 0.0);
         let t = row_of_four(true, false)?;
         // C jumps back onto B's target while A, B and D move on together (a row of targets
-        // whose prediction for C lands on B's).
-        let jump_moves = [
-            (30.0, Recovered),
-            (31.0, Tracked),
-            (-10.0, Tracked),
-            (29.0, Tracked),
-        ];
-        let jump = moved_by(&t, &jump_moves);
-        let flagged = t.incoherent(&jump);
-        assert_eq!(flagged.len(), 1);
-        assert_eq!(flagged[0].0, 2);
-        // Where the others say C went: with them.
-        assert!((flagged[0].1.x - 30.0).abs() <= 1.0, "{:?}", flagged[0].1);
-        // Found by detection's joint assignment: the same.
-        let detected = moved_by(
-            &t,
-            &[
-                (30.0, Recovered),
-                (31.0, Tracked),
-                (-10.0, Recovered),
-                (29.0, Tracked),
-            ],
-        );
-        assert_eq!(t.incoherent(&detected).first().map(|f| f.0), Some(2));
-        // No jump (half a window at most): mean-shift's reach, no doubt about identity.
-        let small = moved_by(
-            &t,
-            &[
-                (30.0, Tracked),
-                (31.0, Tracked),
-                (5.0, Tracked),
-                (29.0, Tracked),
-            ],
-        );
-        assert!(t.incoherent(&small).is_empty());
-        // With the row, within a window of it.
-        let along = moved_by(
-            &t,
-            &[
-                (30.0, Tracked),
-                (31.0, Tracked),
-                (21.0, Tracked),
-                (29.0, Tracked),
-            ],
-        );
-        assert!(t.incoherent(&along).is_empty());
-        // One of the others was fooled the same way (B jumped back with C): the majority
-        // still says otherwise.
-        let fooled = moved_by(
-            &t,
-            &[
-                (30.0, Recovered),
-                (-12.0, Recovered),
-                (-10.0, Tracked),
-                (29.0, Tracked),
-            ],
-        );
-        assert!(t.incoherent(&fooled).iter().any(|f| f.0 == 2));
-        // Only one of three says otherwise: no majority against C.
-        let split = moved_by(
-            &t,
-            &[
-                (30.0, Recovered),
-                (-12.0, Recovered),
-                (-10.0, Tracked),
-                (-9.0, Tracked),
-            ],
-        );
-        assert!(t.incoherent(&split).iter().all(|f| f.0 != 2));
+        // whose prediction for C lands on B's): looked for with them, whether the quick pass
+        // or detection found it.
+        let jump = [30.0, 31.0, -10.0, 29.0];
+        assert_eq!(t.incoherent(&moved_by(&t, jump, Tracked)).len(), 1);
+        let went = c_flagged(&t, jump, Tracked).expect("flagged");
+        assert!((went.x - 30.0).abs() <= 1.0, "{went:?}");
+        assert!(c_flagged(&t, jump, Recovered).is_some());
+        // No jump (half a window at most: mean-shift's reach), or with the row within a
+        // window of it: not flagged.
+        assert!(c_flagged(&t, [30.0, 31.0, 5.0, 29.0], Tracked).is_none());
+        assert!(c_flagged(&t, [30.0, 31.0, 21.0, 29.0], Tracked).is_none());
+        // One of the others fooled the same way (B jumped back with C): the majority still
+        // says otherwise. Two of three with C: no majority against it.
+        assert!(c_flagged(&t, [30.0, -12.0, -10.0, 29.0], Tracked).is_some());
+        assert!(c_flagged(&t, [30.0, -12.0, -10.0, -9.0], Tracked).is_none());
         // A rig that turns: C has moved twice as far as the others. With them at 15 px, C at
         // 30 px is with them, and a jump back is not.
         let mut turning = row_of_four(false, false)?;
+        let step = Vector2::new(STEP_PX, 0.0);
         for j in [0, 1, 3] {
             for _ in 0..10 {
                 turning.coherence[2 * 4 + j].learn(2.0 * step, step);
             }
         }
-        let with = moved_by(
-            &turning,
-            &[
-                (15.0, Tracked),
-                (15.0, Tracked),
-                (30.0, Tracked),
-                (15.0, Tracked),
-            ],
-        );
-        assert!(turning.incoherent(&with).is_empty());
-        let back = moved_by(
-            &turning,
-            &[
-                (15.0, Tracked),
-                (15.0, Tracked),
-                (-10.0, Tracked),
-                (15.0, Tracked),
-            ],
-        );
-        let flagged = turning.incoherent(&back);
-        assert_eq!(flagged.first().map(|f| f.0), Some(2));
-        assert!((flagged[0].1.x - 30.0).abs() <= 1.0, "{:?}", flagged[0].1);
-        // Markers never seen moving are not witnesses.
-        let fresh = row_of_four(false, false)?;
-        assert!(fresh.incoherent(&jump).is_empty());
-        // Colour markers are told apart by colour and swing lines, not by this rule.
-        let red = row_of_four(true, true)?;
-        assert!(red.incoherent(&moved_by(&red, &jump_moves)).is_empty());
+        assert!(c_flagged(&turning, [15.0, 15.0, 30.0, 15.0], Tracked).is_none());
+        let went = c_flagged(&turning, [15.0, 15.0, -10.0, 15.0], Tracked).expect("flagged");
+        assert!((went.x - 30.0).abs() <= 1.0, "{went:?}");
+        // Markers never seen moving are not witnesses; colour markers are told apart by
+        // colour and swing lines, not by this rule.
+        assert!(c_flagged(&row_of_four(false, false)?, jump, Tracked).is_none());
+        assert!(c_flagged(&row_of_four(true, true)?, jump, Tracked).is_none());
         Ok(())
     }
 }

@@ -185,8 +185,8 @@ const MERGED_WINDOWS: f64 = 0.75;
 const SAME_LOOK_RGB: f32 = 40.0;
 /// Rate of the running means of how alike two markers move.
 const COHERENCE_RATE: f64 = 0.2;
-/// Least number of found markers, seen moving alike with a jumping marker, whose agreement
-/// can overrule its quick pass.
+/// Least number of found markers, seen moving in proportion with a jumping gray target
+/// ([`Coherence::gain`]), that can overrule where it was found.
 const COHERENT_WITNESSES: usize = 2;
 /// Least squared correlation of two markers' displacements for one to tell the other's.
 const PROPORTIONAL_R2: f64 = 0.8;
@@ -194,8 +194,8 @@ const PROPORTIONAL_R2: f64 = 0.8;
 const PROPORTIONAL_GAIN: f64 = 4.0;
 /// Most witnesses asked, the nearest first.
 const COHERENT_NEAREST: usize = 4;
-/// Distance (windows) from their mean displacement beyond which a jumping marker's
-/// displacement disagrees with them.
+/// Distance (windows) between a jumping target's displacement and the one a witness gives it
+/// beyond which the two disagree.
 const INCOHERENT_WINDOWS: f64 = 1.0;
 /// Least running mean of the two markers' squared displacements (px^2 per frame) for their
 /// likeness to mean anything (static markers are alike by default).
@@ -559,9 +559,7 @@ impl Tracker {
 
         // Detection in the opened gates, then one joint assignment.
         let mut detection = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
-        for (&i, found) in undecided.iter().zip(&detection.chosen) {
-            results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
-        }
+        detection.record_in(&undecided, &mut results);
         // A jump the markers it moves with did not make is looked for again, from where
         // they say it went, together with the markers that may have lacked the place it took.
         let incoherent = self.incoherent(&results);

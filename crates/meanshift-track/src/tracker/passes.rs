@@ -187,9 +187,7 @@ impl Tracker {
             seen.push(blobs);
         }
         let second = self.detect_and_assign(frame, depth, &redo, &holds, quick);
-        for (&i, found) in redo.iter().zip(&second.chosen) {
-            results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
-        }
+        second.record_in(&redo, results);
         kept.extend(redo);
         chosen.extend(second.chosen);
         seen.extend(second.seen);
@@ -527,6 +525,15 @@ impl Tracker {
 pub(super) struct Detection {
     pub(super) chosen: Vec<Option<(Measured, Option<f64>)>>,
     seen: Vec<Vec<(Point2<f64>, PixelRect)>>,
+}
+
+impl Detection {
+    /// Each of the `undecided` markers' answer into `results`, as `recovered`.
+    pub(super) fn record_in(&self, undecided: &[usize], results: &mut [Option<Found>]) {
+        for (&i, found) in undecided.iter().zip(&self.chosen) {
+            results[i] = found.map(|(q, c)| (q, TrackStatus::Recovered, c));
+        }
+    }
 }
 
 /// What [`Tracker::redetect`] starts from: the flagged markers with the displacement their
