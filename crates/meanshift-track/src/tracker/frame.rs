@@ -137,10 +137,13 @@ impl Tracker {
     /// Markers found after a jump (more than half a window) that the markers they move with
     /// (one rig, one branch: displacements seen in proportion, see [`Coherence::gain`]) did
     /// not make, and where those say the marker went. Of the [`COHERENT_NEAREST`] nearest
-    /// such markers found in this frame and the last (at least [`COHERENT_WITNESSES`]), more
+    /// such markers found in this frame and the last on a likeness at most [`WITNESS_SLACK`]
+    /// less sure than the marker's own (at least [`COHERENT_WITNESSES`]), more
     /// than half give this marker a displacement (theirs times the gain) more than
-    /// [`INCOHERENT_WINDOWS`] from the one it was found with; the median of those is the
-    /// answer. The case: a row of look-alike targets that jumps, where the prediction of one
+    /// [`INCOHERENT_WINDOWS`] (and more than [`GAIN_TOLERANCE`] of that displacement) from
+    /// the one it was found with; the median of those is the answer. With a single
+    /// witness, it must disagree by [`LONE_WITNESS_WINDOWS`] and have been found on a
+    /// likeness at least [`LONE_WITNESS_MARGIN`] surer than the target's. The case: a row of look-alike targets that jumps, where the prediction of one
     /// lands on its neighbour's target, which then passes every test. The nearest only,
     /// since a rig's far parts move differently; a majority rather than agreement, since a
     /// witness may have been fooled the same way. Gray targets only: colour markers are
@@ -161,26 +164,42 @@ impl Tracker {
                     return None;
                 }
                 let last = m.last_center;
-                // What each says this marker's displacement was.
-                let mut near: Vec<(f64, Vector2<f64>)> = (0..n)
+                let own = results[i].as_ref().map_or(1.0, |r| r.0.confidence);
+                // What each says this marker's displacement was, and how sure it was found;
+                // only those found on a likeness about as sure as this one's.
+                let mut near: Vec<(f64, Vector2<f64>, f64)> = (0..n)
                     .filter(|&j| j != i)
                     .filter_map(|j| {
                         let gain = self.coherence[i * n + j].gain(side)?;
                         let w = moved[j]?;
-                        Some(((self.markers[j].last_center - last).norm(), gain * w))
+                        let sure = results[j].as_ref()?.0.confidence;
+                        if sure < own - WITNESS_SLACK {
+                            return None;
+                        }
+                        Some(((self.markers[j].last_center - last).norm(), gain * w, sure))
                     })
                     .collect();
                 near.sort_by(|a, b| a.0.total_cmp(&b.0));
                 near.truncate(COHERENT_NEAREST);
-                if near.len() < COHERENT_WITNESSES {
-                    return None;
-                }
+                // A gain is known to within a share of what it gives.
+                let apart = |w: Vector2<f64>, windows: f64| {
+                    (w - d).norm() > (windows * side).max(GAIN_TOLERANCE * w.norm())
+                };
                 let mut otherwise: Vec<Vector2<f64>> = near
                     .iter()
                     .map(|w| w.1)
-                    .filter(|w| (w - d).norm() > INCOHERENT_WINDOWS * side)
+                    .filter(|&w| apart(w, INCOHERENT_WINDOWS))
                     .collect();
-                if 2 * otherwise.len() <= near.len() {
+                let majority = near.len() >= COHERENT_WITNESSES && 2 * otherwise.len() > near.len();
+                // One witness against one target: the one found on the weaker likeness
+                // gives way, if they disagree by far.
+                let lone = match near.as_slice() {
+                    [(_, w, sure)] => {
+                        apart(*w, LONE_WITNESS_WINDOWS) && *sure >= own + LONE_WITNESS_MARGIN
+                    }
+                    _ => false,
+                };
+                if !majority && !lone {
                     return None;
                 }
                 otherwise.sort_by(|a, b| a.x.total_cmp(&b.x));
@@ -558,6 +577,140 @@ mod tests {
         // colour and swing lines, not by this rule.
         assert!(c_flagged(&row_of_four(false, false)?, jump, Tracked).is_none());
         assert!(c_flagged(&row_of_four(true, true)?, jump, Tracked).is_none());
+        Ok(())
+    }
+
+    #[test]
+    fn surroundings_that_correlate_far_below_their_usual_level_decide_less() -> Result<()> {
+        let mut t = row_of_four(false, false)?;
+        let m = &mut t.markers[2];
+        assert!(m.context.is_some(), "a gray target has surroundings");
+        // Usually 0.98 with a spread under the floor (a still rig, sharp frames).
+        m.context_level = 0.98;
+        m.context_var = 1e-4;
+        let at = m.filter.position;
+        let candidate = |dx: f64, confidence: f64, context: f64| {
+            let window = PixelRect::centered_at(at + Vector2::new(dx, 0.0), 11, 11);
+            let measured = Measured {
+                center: window.center(),
+                window,
+                holds: window,
+                confidence,
+                moments: None,
+            };
+            (measured, Some(context))
+        };
+        let wide = 400.0;
+        let costs = |own: f64, other: f64| {
+            let scored = m.score(
+                &[candidate(-3.0, 0.97, own), candidate(3.0, 0.95, other)],
+                wide,
+                false,
+            );
+            (scored[0].cost, scored[1].cost)
+        };
+        // Two places as far from the prediction, the other a little less like the marker
+        // (0.95 against 0.97). A blurred frame: both surroundings far below 0.98, the
+        // other's 0.11 better; the place that looks more like the marker wins.
+        let (own, other) = costs(0.63, 0.74);
+        assert!(own < other, "{own} against {other}");
+        // A sharp frame, the same difference near the usual level: the surroundings decide.
+        let (own, other) = costs(0.87, 0.97);
+        assert!(own > other, "{own} against {other}");
+        // The spread's factor: (1 - 0.74^2) / (1 - 0.98^2), and never below 1.
+        assert!((correlation_spread(0.98, 0.74) - 0.4524 / 0.0396).abs() < 1e-9);
+        assert_eq!(correlation_spread(0.9, 0.95), 1.0);
+        assert!((correlation_spread(1.0, 0.9) - 0.19 / CORRELATION_SPREAD_FLOOR).abs() < 1e-9);
+        Ok(())
+    }
+
+    #[test]
+    fn a_gray_target_less_alike_than_its_template_usually_is_not_taken_unopposed() -> Result<()> {
+        // A template's correlation with its own target varies by hundredths (real targets
+        // at a release: 0.97 and up); a neighbour's look-alike target correlates 0.75–0.9.
+        let mut gray = row_of_four(false, false)?;
+        let mut colour = row_of_four(false, true)?;
+        for m in gray.markers.iter_mut().chain(colour.markers.iter_mut()) {
+            m.confidence_mean = 0.99;
+            m.confidence_var = 1e-5;
+        }
+        let (target, red) = (&gray.markers[2], &colour.markers[2]);
+        assert!(target.template.is_some() && red.template.is_none());
+        assert!(target.typical(0.96));
+        assert!(
+            !target.typical(0.9),
+            "a look-alike target goes to detection"
+        );
+        // A colour histogram's likeness varies far more (blur, light): 0.8 is still usual.
+        assert!(red.typical(0.8));
+        Ok(())
+    }
+
+    #[test]
+    fn a_lone_witness_overrules_only_a_jump_found_on_a_weaker_likeness() -> Result<()> {
+        use TrackStatus::Tracked;
+        // Only C and D have been seen moving together (the rows above and below too little).
+        let mut t = row_of_four(false, false)?;
+        let step = Vector2::new(STEP_PX, 0.0);
+        for (a, b) in [(2, 3), (3, 2)] {
+            for _ in 0..10 {
+                t.coherence[a * 4 + b].learn(step, step);
+            }
+        }
+        let found = |moves: [f64; 4], c_confidence: f64| {
+            let mut r = moved_by(&t, moves, Tracked);
+            if let Some(c) = r[2].as_mut() {
+                c.0.confidence = c_confidence;
+            }
+            r
+        };
+        // C jumps back while D moves on, and C's place looks less like C than D's like D
+        // (0.85 against 0.95): C is looked for where D says; D is not, on C's word.
+        let jump = [0.0, 0.0, -10.0, 29.0];
+        let flagged = t.incoherent(&found(jump, 0.85));
+        assert_eq!(flagged.len(), 1, "{flagged:?}");
+        assert_eq!(flagged[0].0, 2);
+        assert!((flagged[0].1.x - 29.0).abs() <= 1.0, "{flagged:?}");
+        // As sure as D (within the margin): one against one, nobody is overruled.
+        assert!(t.incoherent(&found(jump, 0.93)).is_empty());
+        // A disagreement under two windows (15 px, windows of 11) is not enough alone.
+        assert!(
+            t.incoherent(&found([0.0, 0.0, 14.0, 29.0], 0.85))
+                .is_empty()
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn a_witness_may_be_off_by_half_of_what_it_gives() -> Result<()> {
+        use TrackStatus::Tracked;
+        let t = row_of_four(true, false)?;
+        // The others say 60 px, C moved 35: 25 px apart, more than a window (11 px) but
+        // within half of 60 (a gain learnt over the first frames of a release is rough).
+        assert!(c_flagged(&t, [60.0, 60.0, 35.0, 60.0], Tracked).is_none());
+        // 70 px apart (a jump back onto the neighbour's target) is flagged.
+        assert!(c_flagged(&t, [60.0, 60.0, -10.0, 60.0], Tracked).is_some());
+        Ok(())
+    }
+
+    #[test]
+    fn witnesses_found_on_a_weaker_likeness_do_not_testify() -> Result<()> {
+        use TrackStatus::Tracked;
+        let t = row_of_four(true, false)?;
+        // C (found at 0.99) moved on while A, B and D jumped back together, each found on
+        // a weaker likeness (0.9): they cannot overrule it. Found as surely, they can.
+        let found = |others: f64| {
+            let mut r = moved_by(&t, [-10.0, -11.0, 30.0, -9.0], Tracked);
+            for (k, f) in r.iter_mut().enumerate() {
+                if let Some(f) = f.as_mut() {
+                    f.0.confidence = if k == 2 { 0.99 } else { others };
+                }
+            }
+            r
+        };
+        let c_flagged = |others: f64| t.incoherent(&found(others)).iter().any(|f| f.0 == 2);
+        assert!(!c_flagged(0.9));
+        assert!(c_flagged(0.98));
         Ok(())
     }
 }

@@ -116,6 +116,9 @@ const CONTEXT_MIN_LEVEL: f64 = 0.6;
 const CONTEXT_CAP: f64 = 12.0;
 /// Least spread assumed for a marker's context correlation.
 const CONTEXT_SIGMA_MIN: f64 = 0.02;
+/// Least `1 - rho^2` of a marker's usual context correlation in [`state::correlation_spread`]
+/// (a correlation of 0.99): the learnt spread already covers noise above it.
+const CORRELATION_SPREAD_FLOOR: f64 = 0.02;
 /// Most a candidate's confidence shortfall (from the best candidate's) may cost.
 const APPEARANCE_CAP: f64 = 8.0;
 /// Spreads below its usual confidence at which a measurement is not accepted without
@@ -123,6 +126,8 @@ const APPEARANCE_CAP: f64 = 8.0;
 const TYPICAL_SIGMAS: f64 = 3.0;
 /// Least spread assumed for a marker's confidence.
 const CONFIDENCE_SIGMA_MIN: f64 = 0.08;
+/// Least spread assumed for a gray target's confidence (its template's correlation).
+const TEMPLATE_SIGMA_MIN: f64 = 0.02;
 /// Share of each found frame blended into a marker's running appearance statistics.
 const APPEARANCE_RATE: f64 = 0.2;
 /// Prior probability that a marker is not where the motion model expects it (a release, a
@@ -188,6 +193,24 @@ const COHERENCE_RATE: f64 = 0.2;
 /// Least number of found markers, seen moving in proportion with a jumping gray target
 /// ([`Coherence::gain`]), that can overrule where it was found.
 const COHERENT_WITNESSES: usize = 2;
+/// Distance (windows) by which a lone witness (the only marker seen moving in proportion
+/// with a jumping gray target) must disagree with the target's displacement to overrule it.
+const LONE_WITNESS_WINDOWS: f64 = 2.0;
+/// How much surer (confidence) a lone witness must have been found than the target it
+/// overrules: two look-alike targets that disagree cannot both be right, and the one found
+/// on the weaker likeness gives way.
+const LONE_WITNESS_MARGIN: f64 = 0.05;
+/// Share of the displacement a witness gives by which it may be off without disagreeing: a
+/// gain learnt over the first frames of a release is rough (on the real rig, the top row
+/// moved 1.9 times the second row's first step and 1.2 times its next).
+const GAIN_TOLERANCE: f64 = 0.5;
+/// How much less surely (confidence) than a jumping gray target a witness may have been
+/// found and still testify: a witness on a weaker likeness may be the one that jumped wrong
+/// (the template spread's floor).
+const WITNESS_SLACK: f64 = TEMPLATE_SIGMA_MIN;
+/// Rounds of flagging and looking again per frame: the second asks again with the first's
+/// answers (a target that jumped with those flagged first, which were its witnesses).
+const INCOHERENCE_ROUNDS: usize = 2;
 /// Least squared correlation of two markers' displacements for one to tell the other's.
 const PROPORTIONAL_R2: f64 = 0.8;
 /// Largest ratio of two markers' displacements for one to tell the other's.
@@ -558,14 +581,25 @@ impl Tracker {
         let (mut results, mut claimed, mut undecided) = self.accept_quick(&quick, &predictions);
 
         // Detection in the opened gates, then one joint assignment.
-        let mut detection = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick);
+        let mut detection = self.detect_and_assign(frame, depth, &undecided, &claimed, &quick, &[]);
         detection.record_in(&undecided, &mut results);
         // A jump the markers it moves with did not make is looked for again, from where
         // they say it went, together with the markers that may have lacked the place it took.
-        let incoherent = self.incoherent(&results);
-        if !incoherent.is_empty() {
+        // A second round asks again with the first round's answers (a target that jumped
+        // with the ones flagged first, and whose witnesses were those).
+        let mut looked_again: Vec<usize> = Vec::new();
+        for _ in 0..INCOHERENCE_ROUNDS {
+            let flagged: Vec<(usize, Vector2<f64>)> = self
+                .incoherent(&results)
+                .into_iter()
+                .filter(|f| !looked_again.contains(&f.0))
+                .collect();
+            if flagged.is_empty() {
+                break;
+            }
+            looked_again.extend(flagged.iter().map(|f| f.0));
             let again = Again {
-                flagged: &incoherent,
+                flagged: &flagged,
                 undecided,
                 first: detection,
                 quick: &quick,

@@ -116,11 +116,17 @@ impl Tracker {
         undecided: &[usize],
         claimed: &[Claim],
         quick: &[Option<Scored>],
+        confined: &[Confined],
     ) -> Detection {
         let mut candidates: Vec<Candidate> = Vec::new();
         let mut seen: Vec<Vec<(Point2<f64>, PixelRect)>> = Vec::with_capacity(undecided.len());
         for &i in undecided {
-            let (scored, blobs) = self.detect(frame, depth, i, claimed, quick[i]);
+            let (mut scored, blobs) = self.detect(frame, depth, i, claimed, quick[i]);
+            scored.retain(|c| {
+                confined
+                    .iter()
+                    .all(|f| f.marker != i || (c.measured.center - f.center).norm() <= f.radius_px)
+            });
             candidates.extend(scored);
             seen.push(blobs);
         }
@@ -129,8 +135,9 @@ impl Tracker {
     }
 
     /// Detection again after [`Tracker::incoherent`] flagged markers: each flagged marker is
-    /// moved to where its witnesses say it went and looked for again, together with the
-    /// undecided markers of its look within [`NEIGHBOUR_RADIUS_WINDOWS`] of it (one of them
+    /// moved to where its witnesses say it went and looked for again, only at places nearer
+    /// to that by a window than the one it took (none there: not found in this frame),
+    /// together with the undecided markers of its look within [`NEIGHBOUR_RADIUS_WINDOWS`] of it (one of them
     /// may have lacked the place it took) and those detection did not find; the other
     /// markers' detections stand and hold their places. `results` and `claimed` are
     /// updated; the markers detection decided and its answer for them are returned, for
@@ -149,10 +156,20 @@ impl Tracker {
             first,
             quick,
         } = again;
+        let mut confined = Vec::with_capacity(flagged.len());
         for &(i, moved) in flagged {
-            results[i] = None;
             let m = &mut self.markers[i];
-            m.filter.position = m.last_center + moved;
+            let answer = m.last_center + moved;
+            m.filter.position = answer;
+            // Only places clearly nearer to the witnesses' answer than the one it took: if
+            // none is, the target is not found in this frame rather than found there again.
+            if let Some((taken, _, _)) = results[i].take() {
+                confined.push(Confined {
+                    marker: i,
+                    center: answer,
+                    radius_px: (taken.center - answer).norm() - window_px(m),
+                });
+            }
         }
         claimed.retain(|c| flagged.iter().all(|&(i, _)| i != c.0));
         let near_flagged = |u: usize| {
@@ -186,7 +203,7 @@ impl Tracker {
             chosen.push(pick);
             seen.push(blobs);
         }
-        let second = self.detect_and_assign(frame, depth, &redo, &holds, quick);
+        let second = self.detect_and_assign(frame, depth, &redo, &holds, quick, &confined);
         second.record_in(&redo, results);
         kept.extend(redo);
         chosen.extend(second.chosen);
@@ -543,6 +560,14 @@ pub(super) struct Again<'a> {
     pub(super) undecided: Vec<usize>,
     pub(super) first: Detection,
     pub(super) quick: &'a [Option<Scored>],
+}
+
+/// Where a flagged marker may be found in the second detection: within `radius_px` of
+/// `center`.
+pub(super) struct Confined {
+    marker: usize,
+    center: Point2<f64>,
+    radius_px: f64,
 }
 
 /// A marker's search gate in one frame.

@@ -79,8 +79,11 @@ impl MarkerState {
             .iter()
             .filter_map(|c| c.1)
             .fold(f64::NEG_INFINITY, f64::max);
-        let conf_sigma = self.confidence_var.sqrt().max(CONFIDENCE_SIGMA_MIN);
-        let context_sigma = self.context_var.sqrt().max(CONTEXT_SIGMA_MIN);
+        let conf_sigma = self.confidence_sigma();
+        // Surroundings that correlate far below their usual level (a blurred frame) tell
+        // candidates apart less sharply.
+        let context_sigma = self.context_var.sqrt().max(CONTEXT_SIGMA_MIN)
+            * correlation_spread(self.context_level, best_context);
         let informative = self.context_informative();
         // With a same-look marker near, the offset counts as it is; alone, only as far as
         // it exceeds the nearest candidate's (it tells candidates apart, but does not hold a
@@ -137,8 +140,19 @@ impl MarkerState {
     /// marker may be less alike, so the check is loose: [`TYPICAL_SIGMAS`] spreads). A
     /// measurement that is not goes to detection, where it competes with other candidates.
     pub(super) fn typical(&self, confidence: f64) -> bool {
-        let sigma = self.confidence_var.sqrt().max(CONFIDENCE_SIGMA_MIN);
+        let sigma = self.confidence_sigma();
         confidence >= self.confidence_mean - TYPICAL_SIGMAS * sigma
+    }
+
+    /// The spread of this marker's confidence: as learnt, at least [`CONFIDENCE_SIGMA_MIN`]
+    /// ([`TEMPLATE_SIGMA_MIN`] for a gray target's template correlation).
+    fn confidence_sigma(&self) -> f64 {
+        let floor = if self.template.is_some() {
+            TEMPLATE_SIGMA_MIN
+        } else {
+            CONFIDENCE_SIGMA_MIN
+        };
+        self.confidence_var.sqrt().max(floor)
     }
 
     /// Whether a context correlation `c` is within what this marker usually shows.
@@ -379,4 +393,13 @@ pub(super) fn remember_distractor(
         bounds,
         seen: 1,
     });
+}
+
+/// How much wider the spread of a correlation is at `now` than at the `usual` level: the
+/// sampling spread of a correlation coefficient goes as `1 - rho^2` (Fisher 1915), so
+/// surroundings that correlate 0.74 in a blurred frame, where they usually correlate 0.98,
+/// tell candidates apart about twelve times less sharply. Never below 1.
+pub(super) fn correlation_spread(usual: f64, now: f64) -> f64 {
+    let at = |rho: f64| 1.0 - rho.clamp(0.0, 1.0).powi(2);
+    (at(now) / at(usual).max(CORRELATION_SPREAD_FLOOR)).max(1.0)
 }
