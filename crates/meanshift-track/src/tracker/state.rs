@@ -80,10 +80,15 @@ impl MarkerState {
             .filter_map(|c| c.1)
             .fold(f64::NEG_INFINITY, f64::max);
         let conf_sigma = self.confidence_sigma();
-        // Surroundings that correlate far below their usual level (a blurred frame) tell
-        // candidates apart less sharply.
-        let context_sigma = self.context_var.sqrt().max(CONTEXT_SIGMA_MIN)
-            * correlation_spread(self.context_level, best_context);
+        // A gray target's surroundings that correlate far below their usual level (a
+        // blurred frame) tell candidates apart less sharply. Not for colour markers: on the
+        // stress sequences' tuning seeds it cost the combined condition a point.
+        let spread = if self.template.is_some() {
+            correlation_spread(self.context_level, best_context)
+        } else {
+            1.0
+        };
+        let context_sigma = self.context_var.sqrt().max(CONTEXT_SIGMA_MIN) * spread;
         let informative = self.context_informative();
         // With a same-look marker near, the offset counts as it is; alone, only as far as
         // it exceeds the nearest candidate's (it tells candidates apart, but does not hold a
