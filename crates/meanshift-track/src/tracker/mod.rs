@@ -528,7 +528,13 @@ impl Tracker {
         }
         if tracker.config.recovery {
             tracker.learn_distractors(first_frame, depth.as_ref());
-            tracker.previous = Some(first_frame.clone());
+            // The previous frame gives colour markers their streaks and tells a still
+            // look-alike from a moving marker; gray targets (templates) need neither, so they
+            // are spared a copy of every frame.
+            let gray = matches!(tracker.config.model, AppearanceModel::Gray { .. });
+            if !gray {
+                tracker.previous = Some(first_frame.clone());
+            }
         }
         Ok(tracker)
     }
