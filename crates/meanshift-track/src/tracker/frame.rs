@@ -211,6 +211,51 @@ impl Tracker {
             .collect()
     }
 
+    /// Gray targets found after a move (more than [`AGAINST_WINDOWS`]) against the direction in
+    /// which every one of their [`COHERENT_NEAREST`] nearest rig-mates jumped (each more
+    /// than half a window, found on a likeness at least [`LONE_WITNESS_MARGIN`] surer),
+    /// where no gain is known yet: the markers have only been seen moving the same way, by
+    /// amounts too small or too unequal for [`Coherence::gain`] (the first frame of a
+    /// release, where a rig's far rows barely move). By at least [`AGAINST_WINDOWS`] against
+    /// it; with the direction of the witnesses' mean displacement.
+    pub(super) fn against_the_rig(&self, results: &[Option<Found>]) -> Vec<(usize, Vector2<f64>)> {
+        let n = self.markers.len();
+        let moved = self.moved(results);
+        (0..n)
+            .filter_map(|i| {
+                let m = &self.markers[i];
+                let (Some(d), Some(_), Some(found)) = (moved[i], &m.template, &results[i]) else {
+                    return None;
+                };
+                let side = window_px(m);
+                let known_gain = (0..n).any(|j| {
+                    j != i && moved[j].is_some() && self.coherence[i * n + j].gain(side).is_some()
+                });
+                if d.norm() <= AGAINST_WINDOWS * side || known_gain {
+                    return None;
+                }
+                let last = m.last_center;
+                let mut near: Vec<(f64, Vector2<f64>)> = (0..n)
+                    .filter(|&j| j != i && self.coherence[i * n + j].same_way())
+                    .filter_map(|j| {
+                        let w = moved[j].filter(|w| w.norm() > 0.5 * side)?;
+                        let sure = results[j].as_ref()?.0.confidence;
+                        (sure >= found.0.confidence + LONE_WITNESS_MARGIN)
+                            .then(|| ((self.markers[j].last_center - last).norm(), w))
+                    })
+                    .collect();
+                near.sort_by(|a, b| a.0.total_cmp(&b.0));
+                near.truncate(COHERENT_NEAREST);
+                let against = |w: &Vector2<f64>| d.dot(&w.normalize()) < -AGAINST_WINDOWS * side;
+                if near.is_empty() || !near.iter().all(|(_, w)| against(w)) {
+                    return None;
+                }
+                let mean: Vector2<f64> = near.iter().map(|(_, w)| w.normalize()).sum();
+                Some((i, mean.normalize()))
+            })
+            .collect()
+    }
+
     /// Each marker's displacement since the last frame, where it was found in both.
     fn moved(&self, results: &[Option<Found>]) -> Vec<Option<Vector2<f64>>> {
         results
@@ -711,6 +756,49 @@ mod tests {
         let c_flagged = |others: f64| t.incoherent(&found(others)).iter().any(|f| f.0 == 2);
         assert!(!c_flagged(0.9));
         assert!(c_flagged(0.98));
+        Ok(())
+    }
+
+    #[test]
+    fn a_target_that_moved_against_its_rig_before_any_gain_is_known_is_looked_at_again()
+    -> Result<()> {
+        use TrackStatus::Tracked;
+        // C has been seen moving the same way as the others, but eight times as far: no
+        // gain yet (the first frame of a release, a row far from the pivot).
+        let mut t = row_of_four(false, false)?;
+        for j in [0, 1, 3] {
+            for _ in 0..10 {
+                t.coherence[2 * 4 + j].learn(Vector2::new(8.0, 0.0), Vector2::new(1.5, 0.0));
+                t.coherence[j * 4 + 2].learn(Vector2::new(1.5, 0.0), Vector2::new(8.0, 0.0));
+            }
+        }
+        assert!(t.coherence[2 * 4].gain(11.0).is_none());
+        let found = |c_move: f64, c_confidence: f64| {
+            let mut r = moved_by(&t, [20.0, 20.0, c_move, 20.0], Tracked);
+            for (k, f) in r.iter_mut().enumerate() {
+                if let Some(f) = f.as_mut() {
+                    f.0.confidence = if k == 2 { c_confidence } else { 0.99 };
+                }
+            }
+            r
+        };
+        // The others jumped 20 px to the right, C 10 px to the left on a weaker likeness:
+        // looked for again to the right.
+        let against = t.against_the_rig(&found(-10.0, 0.85));
+        assert_eq!(against.len(), 1, "{against:?}");
+        assert_eq!(against[0].0, 2);
+        assert!((against[0].1.x - 1.0).abs() < 1e-9, "{against:?}");
+        // With them, by a little against them (mean-shift's noise), or as sure: not.
+        assert!(t.against_the_rig(&found(10.0, 0.85)).is_empty());
+        assert!(t.against_the_rig(&found(-2.0, 0.85)).is_empty());
+        assert!(t.against_the_rig(&found(-10.0, 0.97)).is_empty());
+        // Once a gain is known, [`Tracker::incoherent`] judges instead.
+        let learned = row_of_four(true, false)?;
+        let mut r = moved_by(&learned, [20.0, 20.0, -10.0, 20.0], Tracked);
+        if let Some(c) = r[2].as_mut() {
+            c.0.confidence = 0.85;
+        }
+        assert!(learned.against_the_rig(&r).is_empty());
         Ok(())
     }
 }

@@ -80,7 +80,7 @@ mod track;
 use blobs::*;
 pub use config::{MotionModel, TrackerConfig, WindowMode};
 use joint::*;
-use passes::Again;
+use passes::{Again, Flag, Went};
 use state::*;
 pub use track::{DepthView, MarkerInit, Observation, Track, TrackStatus, TrackSummary};
 
@@ -208,6 +208,10 @@ const GAIN_TOLERANCE: f64 = 0.5;
 /// found and still testify: a witness on a weaker likeness may be the one that jumped wrong
 /// (the template spread's floor).
 const WITNESS_SLACK: f64 = TEMPLATE_SIGMA_MIN;
+/// Distance (windows) a gray target must have moved against the way its rig-mates jumped
+/// for [`Tracker::against_the_rig`] (parts of one rig do not move against each other; a
+/// quarter window is well above mean-shift's noise).
+const AGAINST_WINDOWS: f64 = 0.25;
 /// Rounds of flagging and looking again per frame: the second asks again with the first's
 /// answers (a target that jumped with those flagged first, which were its witnesses).
 const INCOHERENCE_ROUNDS: usize = 2;
@@ -447,6 +451,15 @@ impl Coherence {
             || self.difference_px2 <= COHERENCE_RATIO * self.motion_px2
     }
 
+    /// Seen moving the same way (correlation at least [`PROPORTIONAL_R2`], each at least a
+    /// pixel a frame in root mean square), by whatever amounts.
+    fn same_way(&self) -> bool {
+        self.aa_px2 >= 1.0
+            && self.bb_px2 >= 1.0
+            && self.ab_px2 > 0.0
+            && self.ab_px2 * self.ab_px2 >= PROPORTIONAL_R2 * self.aa_px2 * self.bb_px2
+    }
+
     /// The factor that takes `b`'s displacement to `a`'s, when both have been seen moving
     /// (a root mean square of at least 0.15 of a window `side` a frame), along one
     /// direction (correlation at least [`PROPORTIONAL_R2`]) and by amounts within
@@ -595,15 +608,27 @@ impl Tracker {
         // with the ones flagged first, and whose witnesses were those).
         let mut looked_again: Vec<usize> = Vec::new();
         for _ in 0..INCOHERENCE_ROUNDS {
-            let flagged: Vec<(usize, Vector2<f64>)> = self
+            let mut flagged: Vec<Flag> = self
                 .incoherent(&results)
                 .into_iter()
-                .filter(|f| !looked_again.contains(&f.0))
+                .map(|(marker, moved)| Flag {
+                    marker,
+                    went: Went::By(moved),
+                })
                 .collect();
+            for (marker, direction) in self.against_the_rig(&results) {
+                if flagged.iter().all(|f| f.marker != marker) {
+                    flagged.push(Flag {
+                        marker,
+                        went: Went::Along(direction),
+                    });
+                }
+            }
+            flagged.retain(|f| !looked_again.contains(&f.marker));
             if flagged.is_empty() {
                 break;
             }
-            looked_again.extend(flagged.iter().map(|f| f.0));
+            looked_again.extend(flagged.iter().map(|f| f.marker));
             let again = Again {
                 flagged: &flagged,
                 undecided,

@@ -125,7 +125,7 @@ impl Tracker {
             scored.retain(|c| {
                 confined
                     .iter()
-                    .all(|f| f.marker != i || (c.measured.center - f.center).norm() <= f.radius_px)
+                    .all(|f| f.marker != i || f.holds(c.measured.center))
             });
             candidates.extend(scored);
             seen.push(blobs);
@@ -157,30 +157,45 @@ impl Tracker {
             quick,
         } = again;
         let mut confined = Vec::with_capacity(flagged.len());
-        for &(i, moved) in flagged {
+        for f in flagged {
+            let i = f.marker;
             let m = &mut self.markers[i];
-            let answer = m.last_center + moved;
-            m.filter.position = answer;
-            // Only places clearly nearer to the witnesses' answer than the one it took: if
-            // none is, the target is not found in this frame rather than found there again.
-            if let Some((taken, _, _)) = results[i].take() {
-                confined.push(Confined {
+            let taken = results[i].take();
+            match f.went {
+                Went::By(moved) => {
+                    let answer = m.last_center + moved;
+                    m.filter.position = answer;
+                    // Only places clearly nearer to the witnesses' answer than the one it
+                    // took: if none is, the target is not found in this frame rather than
+                    // found there again.
+                    if let Some((taken, _, _)) = taken {
+                        confined.push(Confined {
+                            marker: i,
+                            center: answer,
+                            radius_px: (taken.center - answer).norm() - window_px(m),
+                            along: None,
+                        });
+                    }
+                }
+                // Only places it reaches by moving with the rig, from its prediction.
+                Went::Along(direction) => confined.push(Confined {
                     marker: i,
-                    center: answer,
-                    radius_px: (taken.center - answer).norm() - window_px(m),
-                });
+                    center: m.last_center,
+                    radius_px: f64::INFINITY,
+                    along: Some(direction),
+                }),
             }
         }
-        claimed.retain(|c| flagged.iter().all(|&(i, _)| i != c.0));
+        claimed.retain(|c| flagged.iter().all(|f| f.marker != c.0));
         let near_flagged = |u: usize| {
-            flagged.iter().any(|&(f, _)| {
+            flagged.iter().map(|f| f.marker).any(|f| {
                 let (a, b) = (&self.markers[u], &self.markers[f]);
                 same_look(a, b)
                     && (a.last_center - b.last_center).norm()
                         <= NEIGHBOUR_RADIUS_WINDOWS * window_px(b)
             })
         };
-        let mut redo: Vec<usize> = flagged.iter().map(|f| f.0).collect();
+        let mut redo: Vec<usize> = flagged.iter().map(|f| f.marker).collect();
         let others: Vec<usize> = undecided
             .iter()
             .copied()
@@ -556,18 +571,43 @@ impl Detection {
 /// What [`Tracker::redetect`] starts from: the flagged markers with the displacement their
 /// witnesses give them, and the first detection (of `undecided`).
 pub(super) struct Again<'a> {
-    pub(super) flagged: &'a [(usize, Vector2<f64>)],
+    pub(super) flagged: &'a [Flag],
     pub(super) undecided: Vec<usize>,
     pub(super) first: Detection,
     pub(super) quick: &'a [Option<Scored>],
 }
 
+/// A marker whose jump its rig-mates did not make, and where they say it went.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Flag {
+    pub(super) marker: usize,
+    pub(super) went: Went,
+}
+
+/// Where a flagged marker went, as its witnesses tell it.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Went {
+    /// By this displacement (witnesses with a known gain).
+    By(Vector2<f64>),
+    /// Somewhere along this direction (unit vector; witnesses seen moving the same way, whose
+    /// gain is not known yet).
+    Along(Vector2<f64>),
+}
+
 /// Where a flagged marker may be found in the second detection: within `radius_px` of
-/// `center`.
+/// `center`, and not against `along` from it.
 pub(super) struct Confined {
     marker: usize,
     center: Point2<f64>,
     radius_px: f64,
+    along: Option<Vector2<f64>>,
+}
+
+impl Confined {
+    fn holds(&self, p: Point2<f64>) -> bool {
+        let d = p - self.center;
+        d.norm() <= self.radius_px && self.along.is_none_or(|u| d.dot(&u) >= 0.0)
+    }
 }
 
 /// A marker's search gate in one frame.
