@@ -153,18 +153,12 @@ impl Tracker {
     pub(super) fn incoherent(&self, results: &[Option<Found>]) -> Vec<(usize, Vector2<f64>)> {
         let n = self.markers.len();
         let moved = self.moved(results);
-        (0..n)
-            .filter_map(|i| {
+        self.moved_targets(results, &moved, 0.5)
+            .into_iter()
+            .filter_map(|(i, d, own)| {
                 let m = &self.markers[i];
-                let (Some(d), Some(_)) = (moved[i], &m.template) else {
-                    return None;
-                };
                 let side = window_px(m);
-                if d.norm() <= 0.5 * side {
-                    return None;
-                }
                 let last = m.last_center;
-                let own = results[i].as_ref().map_or(1.0, |r| r.0.confidence);
                 // What each says this marker's displacement was, and how sure it was found;
                 // only those found on a likeness about as sure as this one's.
                 let mut near: Vec<(f64, Vector2<f64>, f64)> = (0..n)
@@ -221,17 +215,15 @@ impl Tracker {
     pub(super) fn against_the_rig(&self, results: &[Option<Found>]) -> Vec<(usize, Vector2<f64>)> {
         let n = self.markers.len();
         let moved = self.moved(results);
-        (0..n)
-            .filter_map(|i| {
+        self.moved_targets(results, &moved, AGAINST_WINDOWS)
+            .into_iter()
+            .filter_map(|(i, d, own)| {
                 let m = &self.markers[i];
-                let (Some(d), Some(_), Some(found)) = (moved[i], &m.template, &results[i]) else {
-                    return None;
-                };
                 let side = window_px(m);
                 let known_gain = (0..n).any(|j| {
                     j != i && moved[j].is_some() && self.coherence[i * n + j].gain(side).is_some()
                 });
-                if d.norm() <= AGAINST_WINDOWS * side || known_gain {
+                if known_gain {
                     return None;
                 }
                 let last = m.last_center;
@@ -240,7 +232,7 @@ impl Tracker {
                     .filter_map(|j| {
                         let w = moved[j].filter(|w| w.norm() > 0.5 * side)?;
                         let sure = results[j].as_ref()?.0.confidence;
-                        (sure >= found.0.confidence + LONE_WITNESS_MARGIN)
+                        (sure >= own + LONE_WITNESS_MARGIN)
                             .then(|| ((self.markers[j].last_center - last).norm(), w))
                     })
                     .collect();
@@ -252,6 +244,48 @@ impl Tracker {
                 }
                 let mean: Vector2<f64> = near.iter().map(|(_, w)| w.normalize()).sum();
                 Some((i, mean.normalize()))
+            })
+            .collect()
+    }
+
+    /// The gray targets whose move their rig-mates say is wrong, and where they say each
+    /// went: [`Tracker::incoherent`], then [`Tracker::against_the_rig`] for the others.
+    pub(super) fn flags(&self, results: &[Option<Found>]) -> Vec<Flag> {
+        let mut flags: Vec<Flag> = self
+            .incoherent(results)
+            .into_iter()
+            .map(|(marker, moved)| Flag {
+                marker,
+                went: Went::By(moved),
+            })
+            .collect();
+        for (marker, direction) in self.against_the_rig(results) {
+            if flags.iter().all(|f| f.marker != marker) {
+                flags.push(Flag {
+                    marker,
+                    went: Went::Along(direction),
+                });
+            }
+        }
+        flags
+    }
+
+    /// Gray targets found in this frame and the last that moved more than `windows` of
+    /// their window: each with its displacement (`moved`, from [`Tracker::moved`]) and the
+    /// confidence it was found with.
+    fn moved_targets(
+        &self,
+        results: &[Option<Found>],
+        moved: &[Option<Vector2<f64>>],
+        windows: f64,
+    ) -> Vec<(usize, Vector2<f64>, f64)> {
+        self.markers
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.template.is_some())
+            .filter_map(|(i, m)| {
+                let d = moved[i].filter(|d| d.norm() > windows * window_px(m))?;
+                Some((i, d, results[i].as_ref()?.0.confidence))
             })
             .collect()
     }

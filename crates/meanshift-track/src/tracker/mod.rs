@@ -608,22 +608,7 @@ impl Tracker {
         // with the ones flagged first, and whose witnesses were those).
         let mut looked_again: Vec<usize> = Vec::new();
         for _ in 0..INCOHERENCE_ROUNDS {
-            let mut flagged: Vec<Flag> = self
-                .incoherent(&results)
-                .into_iter()
-                .map(|(marker, moved)| Flag {
-                    marker,
-                    went: Went::By(moved),
-                })
-                .collect();
-            for (marker, direction) in self.against_the_rig(&results) {
-                if flagged.iter().all(|f| f.marker != marker) {
-                    flagged.push(Flag {
-                        marker,
-                        went: Went::Along(direction),
-                    });
-                }
-            }
+            let mut flagged = self.flags(&results);
             flagged.retain(|f| !looked_again.contains(&f.marker));
             if flagged.is_empty() {
                 break;

@@ -134,11 +134,11 @@ impl Tracker {
         Detection { chosen, seen }
     }
 
-    /// Detection again after [`Tracker::incoherent`] flagged markers: each flagged marker is
-    /// moved to where its witnesses say it went and looked for again, only at places nearer
-    /// to that by a window than the one it took (none there: not found in this frame),
-    /// together with the undecided markers of its look within [`NEIGHBOUR_RADIUS_WINDOWS`] of it (one of them
-    /// may have lacked the place it took) and those detection did not find; the other
+    /// Detection again after [`Tracker::flags`]: each flagged marker is moved to where its
+    /// witnesses say it went and looked for again, only at places nearer to that by a
+    /// window than the one it took (or, told only a direction, only along it; none there:
+    /// not found in this frame), together with the undecided markers of its look within
+    /// [`NEIGHBOUR_RADIUS_WINDOWS`] of it (one of them may have lacked the place it took) and those detection did not find; the other
     /// markers' detections stand and hold their places. `results` and `claimed` are
     /// updated; the markers detection decided and its answer for them are returned, for
     /// [`Tracker::learn_detection`].
