@@ -1,7 +1,7 @@
 //! A static tree model (skeleton, radii, mesh, cylinders) from a point cloud, with its fidelity.
 //!
 //! ```text
-//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv]
+//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth auto|colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv]
 //! ```
 //!
 //! `CLOUD`: XYZ text, PLY or PCD (kinect-io's readers), metres, Z up. Prints one JSON object:
@@ -58,9 +58,12 @@ struct Args {
     /// The cylinder table, CSV (id,parent,start_x..z,axis_x..z,length,radius,branch,order)
     #[arg(long = "out-cylinders", value_name = "FILE")]
     cylinders: Option<PathBuf>,
-    /// How the skeleton is grown: `colonization` (space colonization, the default) or
-    /// `levels` (geodesic level sets: follows the points, better on leafy and sparse scans)
-    #[arg(long, value_name = "METHOD", default_value = "colonization", value_parser = growth_method)]
+    /// How the skeleton is grown: `auto` (the default: space colonization, unless less than
+    /// 80 % of what it grows lies within 2 cm of the points, as in a leafy crown; then level
+    /// sets), `colonization` (space colonization) or `levels` (geodesic level sets:
+    /// follows the points, better on leafy and sparse scans). `"parameters"` `"growth"`
+    /// says which was used, `"growth"` `"colonization_near_cloud"` the share `auto` measured
+    #[arg(long, value_name = "METHOD", default_value = "auto", value_parser = growth_method)]
     growth: Growth,
     /// Reconstruct from what a Kinect v2 at X,Y,Z (metres, the cloud's frame) would see of
     /// the cloud (the near half of each branch, depth noise along the rays), and measure
@@ -88,9 +91,12 @@ fn point3(text: &str) -> Result<Point3<f64>, String> {
 /// A growth method by name.
 fn growth_method(text: &str) -> Result<Growth, String> {
     match text {
+        "auto" => Ok(Growth::Auto),
         "colonization" => Ok(Growth::Colonization),
         "levels" => Ok(Growth::LevelSets),
-        _ => Err(format!("{text}: must be `colonization` or `levels`")),
+        _ => Err(format!(
+            "{text}: must be `auto`, `colonization` or `levels`"
+        )),
     }
 }
 

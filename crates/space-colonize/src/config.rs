@@ -41,10 +41,28 @@ pub const PATCH_BINS: f64 = 2.0;
 /// comparison's fidelity bound) from the node at its centre.
 pub const MAX_PATCH_M: f64 = 0.03;
 
+/// [`Growth::Auto`] keeps space colonization when at least this share of its grown
+/// skeleton (before any refinement, sampled every centimetre, with pipe-model radii from the
+/// trunk radius) lies within [`crate::metrics::NEAR_CLOUD_M`] (2 cm, the fidelity
+/// bound) of a point: the "model near cloud" on the raw growth. Measured
+/// (`docs/validation.md`): the leaf-off coffee tree 0.995, its three one-sided Kinect views
+/// 0.90–0.95, the pipeline's one-sided twin 0.99, synthetic trees with and without leaf
+/// clumps 0.86–1.00, against 0.67 (tree7), 0.15 (tree13) and 0.27 (Paris_Luxembourg_1),
+/// where colonization runs through the air between leaf clumps. 0.8 lies between the
+/// two groups; it was chosen on those clouds.
+pub const AUTO_NEAR_SHARE: f64 = 0.8;
+
 /// How the skeleton graph is grown.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[non_exhaustive]
 pub enum Growth {
+    /// The default: grow by space colonization, measure how much of what grew lies near
+    /// the points, and when less than [`AUTO_NEAR_SHARE`] does (a leafy or sparse crown,
+    /// where colonization draws branches through the air), grow again by level sets.
+    /// Colonization's first growth is a small part of its time (2–7 % on the real clouds),
+    /// so the choice costs little. [`Parameters::growth`] and
+    /// [`crate::GrowthReport::colonization_near_cloud`] say which was used and why.
+    Auto,
     /// Geodesic level sets over a neighbour graph of the points (Xu, Gossett & Chen 2007):
     /// every node is the centre of a patch of points and every edge joins two patches that
     /// touch, so the model follows the points and ends in leaf clumps instead of crossing
@@ -54,11 +72,11 @@ pub enum Growth {
     /// leaf-off coffee tree it keeps short twigs TreeQSM does not (length +15 %), and on
     /// the pipeline's one-sided Kinect twin its axes are 12.6 mm from the truth
     /// (colonization 7.4 mm: the patch centres of half-seen branches sit on their near
-    /// surface).
+    /// surface). [`Growth::Auto`] picks it where colonization runs through the air.
     LevelSets,
-    /// Space colonization (Runions et al. 2007), the paper's method and the default: the
-    /// nodes grow toward the mean direction of their attractors, which in a leafy crown
-    /// runs through the air.
+    /// Space colonization (Runions et al. 2007), the paper's method: the nodes grow toward
+    /// the mean direction of their attractors, which in a leafy crown runs through the air.
+    /// [`Growth::Auto`] keeps it on wood (leaf-off scans, one-sided views of branches).
     Colonization,
 }
 
@@ -69,7 +87,7 @@ pub const PIPE_EXPONENT: f64 = 2.5;
 /// What the user may set. `None` means "derive from the cloud" (see [`Parameters`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ColonizeConfig {
-    /// How the skeleton graph is grown. Default [`Growth::Colonization`].
+    /// How the skeleton graph is grown. Default [`Growth::Auto`].
     pub growth: Growth,
     /// Level-set bin width (path length from the root per bin), metres. Default:
     /// [`LEVEL_BIN_SPACINGS`] × spacing, at least [`MIN_LEVEL_BIN_M`].
@@ -128,7 +146,7 @@ pub struct ColonizeConfig {
 impl Default for ColonizeConfig {
     fn default() -> Self {
         Self {
-            growth: Growth::Colonization,
+            growth: Growth::Auto,
             bin_m: None,
             patch_m: None,
             spacing_m: None,
@@ -207,7 +225,8 @@ impl ColonizeConfig {
 /// The parameters a reconstruction ran with, derived where the config left them open.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Parameters {
-    /// How the skeleton graph was grown.
+    /// How the skeleton graph was grown: never [`Growth::Auto`], which resolves to the
+    /// method it chose.
     pub growth: Growth,
     /// Level-set bin width, metres.
     pub bin_m: f64,

@@ -25,7 +25,7 @@ pub const CANDIDATE_EDGES: usize = 16;
 pub const MODEL_SAMPLE_M: f64 = 0.01;
 /// Most samples along one edge: a 10 km edge of a corrupt model is measured with a coarser
 /// step rather than allocating a million samples.
-const MAX_SAMPLES_PER_EDGE: usize = 100_000;
+pub(crate) const MAX_SAMPLES_PER_EDGE: usize = 100_000;
 
 /// Fidelity of a model to its cloud by issue 22's measure.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

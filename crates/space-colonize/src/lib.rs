@@ -10,7 +10,10 @@
 //!   set, see [`Parameters`]):
 //!   1. validation, median point spacing, trunk radius from a circle fitted to the lowest
 //!      slice, clusters beyond the largest bridge set aside as outliers;
-//!   2. space colonization with k-d trees (kiddo): kill distance ≈ 1.2 trunk radii, step
+//!   2. growth, by default [`Growth::Auto`]: space colonization, kept unless less than
+//!      [`AUTO_NEAR_SHARE`] of it lies within 2 cm of the points (a leafy crown it crosses
+//!      through the air), then geodesic level sets ([`Growth::LevelSets`]).
+//!      Space colonization with k-d trees (kiddo): kill distance ≈ 1.2 trunk radii, step
 //!      1.5 spacings, influence 2.75 kill distances; only points near new nodes are
 //!      revisited, so growth costs O(n log n); gaps (occlusions, one-sided views) are
 //!      crossed by the shortest straight bridge, never by growth toward nothing; a step
@@ -72,9 +75,9 @@ mod view;
 
 pub use cloud::{MAX_COORDINATE_M, MIN_POINTS};
 pub use config::{
-    ColonizeConfig, Growth, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, LEVEL_BIN_SPACINGS,
-    MAX_GAP_INFLUENCES, MAX_PATCH_M, MAX_TWIG_KILL_M, MIN_KILL_SPACINGS, MIN_LEVEL_BIN_M,
-    MIN_STEP_PER_KILL, PATCH_BINS, PIPE_EXPONENT, Parameters, STEP_SPACINGS,
+    AUTO_NEAR_SHARE, ColonizeConfig, Growth, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS,
+    LEVEL_BIN_SPACINGS, MAX_GAP_INFLUENCES, MAX_PATCH_M, MAX_TWIG_KILL_M, MIN_KILL_SPACINGS,
+    MIN_LEVEL_BIN_M, MIN_STEP_PER_KILL, PATCH_BINS, PIPE_EXPONENT, Parameters, STEP_SPACINGS,
 };
 pub use error::{ColonizeError, Result};
 pub use reconstruct::{

@@ -3,16 +3,17 @@
 use nalgebra::{Point3, Vector3};
 use serde::Serialize;
 
-use crate::cloud::Prepared;
-use crate::cloud::prepare;
-use crate::config::Growth;
-use crate::config::{ColonizeConfig, Parameters};
+use kiddo::SquaredEuclidean;
+
+use crate::cloud::{PointTree, Prepared, prepare};
+use crate::config::{AUTO_NEAR_SHARE, ColonizeConfig, Growth, Parameters};
 use crate::error::{ColonizeError, Result};
+use crate::fidelity::{MAX_SAMPLES_PER_EDGE, MODEL_SAMPLE_M};
 use crate::grow::{Pass, grow};
 use crate::levels::{Levels, grow_levels};
 use crate::metrics::NEAR_CLOUD_M;
 use crate::refine::{Graph, far_tails, twig_stubs, unneeded_stubs};
-use crate::skeleton::{Branch, Skeleton};
+use crate::skeleton::{Branch, Skeleton, SkeletonNode};
 
 /// Laplacian passes on the grown nodes before centring.
 const PRE_CENTRING_PASSES: usize = 3;
@@ -72,6 +73,11 @@ pub struct GrowthReport {
     /// not asked for or when they disagree with the pipe model by more than a factor of 2
     /// at the median (leaf clumps, not wood).
     pub radius_fits_used: bool,
+    /// With [`Growth::Auto`]: the share of the first space-colonization growth (before
+    /// refinement, sampled every [`MODEL_SAMPLE_M`]) within [`NEAR_CLOUD_M`] of a point;
+    /// below [`AUTO_NEAR_SHARE`] the tree was grown by level sets instead. `None` when a
+    /// method was asked for.
+    pub colonization_near_cloud: Option<f64>,
 }
 
 /// A reconstructed tree.
@@ -123,19 +129,10 @@ pub fn reconstruct_with_progress(
     progress(Stage::Prepare);
     let prep = prepare(points, config)?;
     progress(Stage::Grow);
-    let p = prep.params;
-    let levels = p.growth == Growth::LevelSets;
-    let g = if levels {
-        grow_levels(
-            &prep,
-            Levels {
-                bin_m: p.bin_m,
-                patch_m: p.patch_m,
-            },
-        )?
-    } else {
+    let colonize = |prep: &Prepared| {
+        let p = prep.params;
         grow(
-            &prep,
+            prep,
             Pass {
                 seeds: (&[], &[]),
                 attract: prep.main.clone(),
@@ -144,7 +141,45 @@ pub fn reconstruct_with_progress(
                 step_m: p.step_m,
                 bridges: true,
             },
-        )?
+        )
+    };
+    let by_levels = |prep: &Prepared| {
+        let p = prep.params;
+        grow_levels(
+            prep,
+            Levels {
+                bin_m: p.bin_m,
+                patch_m: p.patch_m,
+            },
+        )
+    };
+    let (g, levels, colonization_near_cloud) = match prep.params.growth {
+        Growth::LevelSets => (by_levels(&prep)?, true, None),
+        Growth::Colonization => (colonize(&prep)?, false, None),
+        Growth::Auto => {
+            let g = colonize(&prep)?;
+            let p = prep.params;
+            let near = near_share(
+                &g.positions,
+                &g.parents,
+                &prep.tree,
+                p.trunk_radius_m,
+                p.pipe_exponent,
+            );
+            if near >= AUTO_NEAR_SHARE {
+                (g, false, Some(near))
+            } else {
+                (by_levels(&prep)?, true, Some(near))
+            }
+        }
+    };
+    let p = Parameters {
+        growth: if levels {
+            Growth::LevelSets
+        } else {
+            Growth::Colonization
+        },
+        ..prep.params
     };
     if g.positions.len() < 2 {
         return Err(ColonizeError::NoGrowth {
@@ -281,11 +316,69 @@ pub fn reconstruct_with_progress(
             pruned_twigs: pruned,
             far_tips,
             radius_fits_used: fits_used,
+            colonization_near_cloud,
         },
         skeleton,
         branches,
         parameters: p,
     })
+}
+
+/// Share of the length of a grown graph (`positions`, `parents`), sampled every
+/// [`MODEL_SAMPLE_M`], whose nearest point in `tree` is within [`NEAR_CLOUD_M`] of the
+/// surface of a pipe model anchored to `trunk_radius_m` at the root (exponent
+/// `pipe_exponent`): the "model near cloud" on the raw growth, where a node on the
+/// axis of a thick branch is a radius from its points. 0 for a graph without length.
+fn near_share(
+    positions: &[[f64; 3]],
+    parents: &[Option<usize>],
+    tree: &PointTree,
+    trunk_radius_m: f64,
+    pipe_exponent: f64,
+) -> f64 {
+    let nodes: Vec<SkeletonNode> = positions
+        .iter()
+        .zip(parents)
+        .enumerate()
+        .map(|(id, (p, &parent))| SkeletonNode {
+            id,
+            parent,
+            position: Point3::from(*p),
+            radius_m: 0.0,
+        })
+        .collect();
+    let Ok(skeleton) = Skeleton::new(nodes) else {
+        return 0.0;
+    };
+    let w = skeleton.carried_length_m();
+    let w_root = w[skeleton.root()];
+    let (mut near, mut total) = (0.0, 0.0);
+    for (i, (a, parent)) in positions.iter().zip(parents).enumerate() {
+        let Some(b) = parent.and_then(|j| positions.get(j)) else {
+            continue;
+        };
+        let radius = if w_root > 0.0 {
+            trunk_radius_m * (w[i] / w_root).powf(1.0 / pipe_exponent)
+        } else {
+            0.0
+        };
+        let reach2 = (radius + NEAR_CLOUD_M).powi(2);
+        let (a, b) = (Vector3::from(*a), Vector3::from(*b));
+        let len = (b - a).norm();
+        let n = ((len / MODEL_SAMPLE_M).ceil() as usize).clamp(1, MAX_SAMPLES_PER_EDGE);
+        let piece = len / n as f64;
+        for k in 0..n {
+            let q = a + (b - a) * ((k as f64 + 0.5) / n as f64);
+            let d2 = tree
+                .nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z])
+                .distance;
+            total += piece;
+            if d2 <= reach2 {
+                near += piece;
+            }
+        }
+    }
+    if total > 0.0 { near / total } else { 0.0 }
 }
 
 /// Remove the `candidates` (lists of nodes, each with its subtree) that no point needs
@@ -323,4 +416,47 @@ fn remove_unneeded(
         graph.retain(&keep);
     }
     Ok(removed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rings of 12 points around the z axis every centimetre from 0 to 1 m, tapering from
+    /// `radius_m` as a pipe model of exponent 2.5 over a 1 m chain does (at height z the
+    /// chain above carries 1 - z metres).
+    fn tube(radius_m: f64) -> Vec<[f64; 3]> {
+        let mut pts = Vec::new();
+        for k in 0..100 {
+            let z = 0.01 * f64::from(k);
+            let r = radius_m * (1.0 - z).powf(1.0 / 2.5);
+            for a in 0..12 {
+                let phi = f64::from(a) * std::f64::consts::TAU / 12.0;
+                pts.push([r * phi.cos(), r * phi.sin(), z]);
+            }
+        }
+        pts
+    }
+
+    #[test]
+    fn near_share_measures_against_the_pipe_surface() {
+        let pts = tube(0.05);
+        let tree = PointTree::new_from_slice(&pts);
+        // A chain up the axis: a radius from the points, inside a pipe that tapers the same.
+        let axis: Vec<[f64; 3]> = (0..=10).map(|k| [0.0, 0.0, 0.1 * f64::from(k)]).collect();
+        let parents: Vec<Option<usize>> = (0..=10usize).map(|k| k.checked_sub(1)).collect();
+        let on_axis = near_share(&axis, &parents, &tree, 0.05, 2.5);
+        assert!((on_axis - 1.0).abs() < 1e-12, "{on_axis}");
+        // Thought 1 cm thick at its base, the chain is far from the thick part's points.
+        let thin = near_share(&axis, &parents, &tree, 0.01, 2.5);
+        assert!(thin < 0.5, "{thin}");
+        // Half of it beyond the tube's top: half near.
+        let over: Vec<[f64; 3]> = (0..=10)
+            .map(|k| [0.0, 0.0, 0.5 + 0.1 * f64::from(k)])
+            .collect();
+        let half = near_share(&over, &parents, &tree, 0.05, 2.5);
+        assert!((half - 0.5).abs() < 0.1, "{half}");
+        // No length, nothing near.
+        assert_eq!(near_share(&axis[..1], &parents[..1], &tree, 0.05, 2.5), 0.0);
+    }
 }

@@ -47,7 +47,22 @@ pub struct SyntheticConfig {
     pub view_direction: Option<Vector3<f64>>,
     /// Remove points with z in this range, metres (an occluded stretch). Default `None`.
     pub gap_z_m: Option<(f64, f64)>,
+    /// Points on leaves, added after the wood's (about; 0, the default, is a leaf-off
+    /// tree). Leaves are flat discs of [`LEAF_RADIUS_M`], [`LEAF_POINTS`] points each,
+    /// turned at random and held by a stalk of up to [`LEAF_STALK_M`] from a random node of
+    /// a twig thinner than [`LEAF_TWIG_RADIUS_M`]: a leafy crown to test that growth
+    /// follows the wood. They get the same noise and no view or gap.
+    pub leaf_points: usize,
 }
+
+/// Radius of a synthetic leaf, metres (a broad-leaved tree's leaf is 5–10 cm long).
+pub const LEAF_RADIUS_M: f64 = 0.03;
+/// Points per synthetic leaf.
+pub const LEAF_POINTS: usize = 30;
+/// Longest stalk between a twig and a synthetic leaf's centre, metres.
+pub const LEAF_STALK_M: f64 = 0.06;
+/// Leaves hang from twigs thinner than this, metres.
+pub const LEAF_TWIG_RADIUS_M: f64 = 0.01;
 
 impl Default for SyntheticConfig {
     fn default() -> Self {
@@ -60,6 +75,7 @@ impl Default for SyntheticConfig {
             noise_m: 0.001,
             view_direction: None,
             gap_z_m: None,
+            leaf_points: 0,
         }
     }
 }
@@ -107,30 +123,10 @@ impl SyntheticConfig {
     /// Grow the tree and sample it.
     ///
     /// # Errors
-    /// [`ColonizeError::InvalidParameter`] for a non-positive height, radius, point count or
-    /// a negative noise.
+    /// [`ColonizeError::InvalidParameter`] for a non-positive height, radius, point count, a
+    /// negative noise, or more than [`MAX_SYNTHETIC_POINTS`] points or leaf points.
     pub fn generate(&self) -> Result<SyntheticTree> {
-        let pos = |name: &'static str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(ColonizeError::param(name, format!("{v}; must be positive")))
-            }
-        };
-        pos("height_m", self.height_m)?;
-        pos("base_radius_m", self.base_radius_m)?;
-        if self.points == 0 || self.points > MAX_SYNTHETIC_POINTS {
-            return Err(ColonizeError::param(
-                "points",
-                format!("{}; must be 1 to {MAX_SYNTHETIC_POINTS}", self.points),
-            ));
-        }
-        if !(self.noise_m.is_finite() && self.noise_m >= 0.0) {
-            return Err(ColonizeError::param(
-                "noise_m",
-                format!("{}; must be zero or positive", self.noise_m),
-            ));
-        }
+        self.check()?;
         let mut rng = Rng(SplitMix64::seed_from_u64(self.seed));
         let mut positions: Vec<Point3<f64>> = vec![Point3::origin()];
         let mut parents: Vec<Option<usize>> = vec![None];
@@ -205,8 +201,83 @@ impl SyntheticConfig {
                 })
                 .collect(),
         )?;
-        let points = self.sample(&skeleton, &mut rng);
+        let mut points = self.sample(&skeleton, &mut rng);
+        points.extend(self.leaves(&skeleton, &mut rng));
         Ok(SyntheticTree { skeleton, points })
+    }
+
+    /// [`SyntheticConfig::leaf_points`] points on leaves (none when the tree has no twig
+    /// thinner than [`LEAF_TWIG_RADIUS_M`]).
+    fn leaves(&self, skeleton: &Skeleton, rng: &mut Rng) -> Vec<Point3<f64>> {
+        let twigs: Vec<Point3<f64>> = skeleton
+            .nodes()
+            .iter()
+            .filter(|x| x.parent.is_some() && x.radius_m < LEAF_TWIG_RADIUS_M)
+            .map(|x| x.position)
+            .collect();
+        let count = self.leaf_points.div_ceil(LEAF_POINTS);
+        if twigs.is_empty() || count == 0 {
+            return Vec::new();
+        }
+        let mut out = Vec::with_capacity(count * LEAF_POINTS);
+        let unit = |rng: &mut Rng| {
+            loop {
+                let v = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+                if let Some(u) = v.try_normalize(1e-6) {
+                    break u;
+                }
+            }
+        };
+        for _ in 0..count {
+            let at = twigs[(rng.next_u64() % twigs.len() as u64) as usize];
+            let centre = at + unit(rng) * rng.range(LEAF_RADIUS_M, LEAF_STALK_M);
+            let normal = unit(rng);
+            let u = unit_perpendicular(&normal);
+            let v = normal.cross(&u);
+            for _ in 0..LEAF_POINTS {
+                // Uniform on the disc.
+                let r = LEAF_RADIUS_M * rng.uniform().sqrt();
+                let phi = rng.range(0.0, std::f64::consts::TAU);
+                let noise = Vector3::new(rng.normal(), rng.normal(), rng.normal()) * self.noise_m;
+                out.push(centre + (u * phi.cos() + v * phi.sin()) * r + noise);
+            }
+        }
+        out
+    }
+
+    /// The config's values on their own ([`SyntheticConfig::generate`]'s errors).
+    fn check(&self) -> Result<()> {
+        let pos = |name: &'static str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ColonizeError::param(name, format!("{v}; must be positive")))
+            }
+        };
+        pos("height_m", self.height_m)?;
+        pos("base_radius_m", self.base_radius_m)?;
+        if self.points == 0 || self.points > MAX_SYNTHETIC_POINTS {
+            return Err(ColonizeError::param(
+                "points",
+                format!("{}; must be 1 to {MAX_SYNTHETIC_POINTS}", self.points),
+            ));
+        }
+        if self.leaf_points > MAX_SYNTHETIC_POINTS {
+            return Err(ColonizeError::param(
+                "leaf_points",
+                format!(
+                    "{}; must be at most {MAX_SYNTHETIC_POINTS}",
+                    self.leaf_points
+                ),
+            ));
+        }
+        if !(self.noise_m.is_finite() && self.noise_m >= 0.0) {
+            return Err(ColonizeError::param(
+                "noise_m",
+                format!("{}; must be zero or positive", self.noise_m),
+            ));
+        }
+        Ok(())
     }
 
     fn sample(&self, skeleton: &Skeleton, rng: &mut Rng) -> Vec<Point3<f64>> {
@@ -337,5 +408,53 @@ pub fn skeleton_error(model: &Skeleton, truth: &Skeleton) -> SkeletonError {
         length_ratio: model.total_length_m() / truth.total_length_m(),
         volume_ratio: model.volume_m3() / truth.volume_m3(),
         base_radius_ratio: base_radius(model) / base_radius(truth),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn leaves_hang_from_thin_twigs_after_the_same_wood() {
+        let bare = SyntheticConfig {
+            points: 3_000,
+            ..Default::default()
+        };
+        let leafy = SyntheticConfig {
+            leaf_points: 600,
+            ..bare.clone()
+        };
+        let (b, l) = (bare.generate().unwrap(), leafy.generate().unwrap());
+        // The wood is drawn first, so it is the same; then whole leaves.
+        assert_eq!(l.points[..b.points.len()], b.points[..]);
+        let leaves = &l.points[b.points.len()..];
+        assert_eq!(leaves.len(), 600_usize.div_ceil(LEAF_POINTS) * LEAF_POINTS);
+        // Every leaf point within stalk + leaf radius (+ noise) of a thin twig's node.
+        let twigs: Vec<Point3<f64>> = l
+            .skeleton
+            .nodes()
+            .iter()
+            .filter(|x| x.parent.is_some() && x.radius_m < LEAF_TWIG_RADIUS_M)
+            .map(|x| x.position)
+            .collect();
+        for q in leaves {
+            let d = twigs
+                .iter()
+                .map(|t| (t - q).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(d < LEAF_STALK_M + LEAF_RADIUS_M + 0.01, "{d}");
+        }
+        let too_many = SyntheticConfig {
+            leaf_points: MAX_SYNTHETIC_POINTS + 1,
+            ..bare
+        };
+        assert!(matches!(
+            too_many.generate(),
+            Err(ColonizeError::InvalidParameter {
+                name: "leaf_points",
+                ..
+            })
+        ));
     }
 }
