@@ -35,7 +35,7 @@ fn bench(c: &mut Criterion) {
         });
     }
     if full {
-        for name in ["tree7", "Paris_Luxembourg_1"] {
+        for name in ["tree7", "tree13", "Paris_Luxembourg_1"] {
             let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
                 .join("../shared/data/pointclouds/adtree")
                 .join(format!("{name}.xyz"));
@@ -55,6 +55,11 @@ fn bench(c: &mut Criterion) {
                 .collect();
             g.bench_function(format!("adtree_{name}_levels"), |b| {
                 b.iter(|| reconstruct(black_box(&points), &levels()).unwrap());
+            });
+            // The default (`Growth::Auto`) chooses level sets on these clouds after
+            // colonization's first growth: the time a user gets.
+            g.bench_function(format!("adtree_{name}_default"), |b| {
+                b.iter(|| reconstruct(black_box(&points), &ColonizeConfig::default()).unwrap());
             });
         }
     }
