@@ -223,7 +223,7 @@ fn check_thickness(points: &[Point3<f64>]) -> Result<()> {
     Ok(())
 }
 
-fn median_spacing(pts: &[[f64; 3]], tree: &PointTree) -> Result<f64> {
+pub(crate) fn median_spacing(pts: &[[f64; 3]], tree: &PointTree) -> Result<f64> {
     let stride = pts.len().div_ceil(SPACING_SAMPLE).max(1);
     let k = std::num::NonZeroUsize::MIN.saturating_add(1);
     let mut d: Vec<f64> = pts

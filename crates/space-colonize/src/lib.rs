@@ -90,7 +90,9 @@ pub use geometry::{
     Cylinder, DEFAULT_MESH_SIDES, MAX_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv,
     tube_mesh,
 };
-pub use levels::{BRIDGE_COST, EDGE_SPACINGS, LINK_BINS, NEIGHBOURS};
+pub use levels::{
+    BRIDGE_COST, EDGE_SPACINGS, LEVEL_VOXEL_BINS, LINK_BINS, NEIGHBOURS, THIN_BELOW_VOXEL,
+};
 pub use metrics::{Metrics, NEAR_CLOUD_M, metrics};
 pub use view::{KINECT_DEPTH_NOISE_M, KINECT_V2_PIXEL_RAD, MIN_PIXEL_RAD, ViewConfig, camera_view};
 

@@ -258,6 +258,35 @@ fn level_sets_stay_on_the_points() {
     assert_eq!(model.parameters.growth, space_colonize::Growth::LevelSets);
 }
 
+/// A dense scan (40k points, 2.6 mm spacing) grows its level sets on the cloud thinned to
+/// 1 cm cubes (`THIN_BELOW_VOXEL`), and the model is as good as on 10k points.
+#[test]
+fn level_sets_on_a_dense_cloud_stay_on_the_points() {
+    let truth = SyntheticConfig {
+        points: 40_000,
+        ..small(3)
+    }
+    .generate()
+    .unwrap();
+    let config = ColonizeConfig {
+        growth: space_colonize::Growth::LevelSets,
+        ..ColonizeConfig::default()
+    };
+    let model = reconstruct(&truth.points, &config).unwrap();
+    let p = model.parameters;
+    assert!(
+        p.spacing_m < space_colonize::THIN_BELOW_VOXEL * space_colonize::LEVEL_VOXEL_BINS * p.bin_m,
+        "{p:?}"
+    );
+    let f = space_colonize::fidelity(&truth.points, &model.skeleton);
+    assert!(f.model_near_cloud > 0.99, "{f:?}");
+    assert!(f.within_2cm > 0.99, "{f:?}");
+    let e = skeleton_error(&model.skeleton, &truth.skeleton);
+    println!("{f:?}\n{e:?}");
+    assert!(e.mean_skeleton_error_m < 0.015, "{e:?}");
+    assert!(e.truth_length_found > 0.97, "{e:?}");
+}
+
 /// A tree in leaf seen as a sparse scan sees it: the trunk, and above it leaf clumps
 /// without the twigs that hold them (the wood of a synthetic tree above `crown_z_m` hidden,
 /// its leaves kept).
