@@ -31,9 +31,9 @@ use treemocap::kinect_io::read_point_cloud;
 use treemocap::nalgebra::Point3;
 use treemocap::space_colonize::synthetic::{SkeletonError, SyntheticConfig, skeleton_error};
 use treemocap::space_colonize::{
-    ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, Growth, GrowthReport, KINECT_DEPTH_NOISE_M,
-    Metrics, Parameters, Reconstruction, Stage, ViewConfig, camera_view, cylinders,
-    cylinders_to_csv, fidelity, metrics, reconstruct_with_progress, tube_mesh,
+    AUTO_NEAR_SHARE, ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, Growth, GrowthReport,
+    KINECT_DEPTH_NOISE_M, Metrics, Parameters, Reconstruction, Stage, ViewConfig, camera_view,
+    cylinders, cylinders_to_csv, fidelity, metrics, reconstruct_with_progress, tube_mesh,
 };
 
 mod common;
@@ -165,6 +165,19 @@ fn run(
     };
     let model = reconstruct_with_progress(points, &config, &mut progress)?;
     let seconds = t.elapsed().as_secs_f64();
+    if let Some(share) = model.growth.colonization_near_cloud {
+        eprintln!(
+            "[{seconds:6.2} s] grown by {}: {:.0} % of space colonization's growth lay within \
+             2 cm of the points (level sets below {:.0} %)",
+            if model.parameters.growth == Growth::LevelSets {
+                "level sets"
+            } else {
+                "space colonization"
+            },
+            100.0 * share,
+            100.0 * AUTO_NEAR_SHARE
+        );
+    }
     eprintln!("[{seconds:6.2} s] done; measuring the model against the cloud");
     Ok((model, seconds))
 }
