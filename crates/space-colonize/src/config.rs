@@ -45,9 +45,9 @@ pub const MAX_PATCH_M: f64 = 0.03;
 /// skeleton (before any refinement, sampled every centimetre, with pipe-model radii from the
 /// trunk radius) lies within [`crate::metrics::NEAR_CLOUD_M`] (2 cm, the fidelity
 /// bound) of a point: the "model near cloud" on the raw growth. Measured
-/// (`docs/validation.md`): the leaf-off coffee tree 0.995, its three one-sided Kinect views
+/// (`docs/validation.md`): the leaf-off coffee tree 0.996, its three one-sided Kinect views
 /// 0.90–0.95, the pipeline's one-sided twin 0.99, synthetic trees with and without leaf
-/// clumps 0.86–1.00, against 0.67 (tree7), 0.15 (tree13) and 0.27 (Paris_Luxembourg_1),
+/// clumps 0.86–1.00, against 0.68 (tree7), 0.16 (tree13) and 0.28 (Paris_Luxembourg_1),
 /// where colonization runs through the air between leaf clumps. 0.8 lies between the
 /// two groups; it was chosen on those clouds.
 pub const AUTO_NEAR_SHARE: f64 = 0.8;

@@ -25,7 +25,7 @@ pub const CANDIDATE_EDGES: usize = 16;
 pub const MODEL_SAMPLE_M: f64 = 0.01;
 /// Most samples along one edge: a 10 km edge of a corrupt model is measured with a coarser
 /// step rather than allocating a million samples.
-pub(crate) const MAX_SAMPLES_PER_EDGE: usize = 100_000;
+const MAX_SAMPLES_PER_EDGE: usize = 100_000;
 
 /// Fidelity of a model to its cloud by issue 22's measure.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -122,8 +122,35 @@ pub fn fidelity(points: &[Point3<f64>], skeleton: &Skeleton) -> Fidelity {
     }
     let pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
     let cloud: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&pts);
+    Fidelity {
+        points: points.len(),
+        mean_distance_m: sum / points.len() as f64,
+        within_2cm: within as f64 / points.len() as f64,
+        model_near_cloud: near_length(&cones, &cloud) / axis_length_m,
+        axis_length_m,
+    }
+}
+
+/// Share of `skeleton`'s axis length near the points of `cloud` (the module docs' "model
+/// near cloud"); 0 for a skeleton without length.
+pub(crate) fn model_near_cloud(
+    skeleton: &Skeleton,
+    cloud: &ImmutableKdTree<f64, u32, 3, 32>,
+) -> f64 {
+    let cones = cones(skeleton);
+    let length: f64 = cones.iter().map(|c| c.len).sum();
+    if length > 0.0 {
+        near_length(&cones, cloud) / length
+    } else {
+        0.0
+    }
+}
+
+/// Axis length of `cones`, sampled every [`MODEL_SAMPLE_M`], whose nearest point in `cloud`
+/// lies within the local radius + [`NEAR_CLOUD_M`], metres.
+fn near_length(cones: &[Cone], cloud: &ImmutableKdTree<f64, u32, 3, 32>) -> f64 {
     let mut near = 0.0;
-    for c in &cones {
+    for c in cones {
         let n = ((c.len / MODEL_SAMPLE_M).ceil() as usize).clamp(1, MAX_SAMPLES_PER_EDGE);
         let piece = c.len / n as f64;
         for s in 0..n {
@@ -138,13 +165,7 @@ pub fn fidelity(points: &[Point3<f64>], skeleton: &Skeleton) -> Fidelity {
             }
         }
     }
-    Fidelity {
-        points: points.len(),
-        mean_distance_m: sum / points.len() as f64,
-        within_2cm: within as f64 / points.len() as f64,
-        model_near_cloud: near / axis_length_m,
-        axis_length_m,
-    }
+    near
 }
 
 #[cfg(test)]

@@ -3,12 +3,10 @@
 use nalgebra::{Point3, Vector3};
 use serde::Serialize;
 
-use kiddo::SquaredEuclidean;
-
 use crate::cloud::{PointTree, Prepared, prepare};
 use crate::config::{AUTO_NEAR_SHARE, ColonizeConfig, Growth, Parameters};
 use crate::error::{ColonizeError, Result};
-use crate::fidelity::{MAX_SAMPLES_PER_EDGE, MODEL_SAMPLE_M};
+use crate::fidelity::model_near_cloud;
 use crate::grow::{Pass, grow};
 use crate::levels::{Levels, grow_levels};
 use crate::metrics::NEAR_CLOUD_M;
@@ -73,8 +71,9 @@ pub struct GrowthReport {
     /// not asked for or when they disagree with the pipe model by more than a factor of 2
     /// at the median (leaf clumps, not wood).
     pub radius_fits_used: bool,
-    /// With [`Growth::Auto`]: the share of the first space-colonization growth (before
-    /// refinement, sampled every [`MODEL_SAMPLE_M`]) within [`NEAR_CLOUD_M`] of a point;
+    /// With [`Growth::Auto`]: the "model near cloud" of the first space-colonization growth
+    /// (before refinement, with pipe-model radii from the trunk radius: the share of its
+    /// length within [`NEAR_CLOUD_M`] of a point beyond its surface, see [`crate::fidelity()`]);
     /// below [`AUTO_NEAR_SHARE`] the tree was grown by level sets instead. `None` when a
     /// method was asked for.
     pub colonization_near_cloud: Option<f64>,
@@ -324,11 +323,10 @@ pub fn reconstruct_with_progress(
     })
 }
 
-/// Share of the length of a grown graph (`positions`, `parents`), sampled every
-/// [`MODEL_SAMPLE_M`], whose nearest point in `tree` is within [`NEAR_CLOUD_M`] of the
-/// surface of a pipe model anchored to `trunk_radius_m` at the root (exponent
-/// `pipe_exponent`): the "model near cloud" on the raw growth, where a node on the
-/// axis of a thick branch is a radius from its points. 0 for a graph without length.
+/// The "model near cloud" ([`crate::fidelity()`]) of a grown graph (`positions`,
+/// `parents`) given pipe-model radii anchored to `trunk_radius_m` at the root (exponent
+/// `pipe_exponent`), since a node on the axis of a thick branch is a radius from its
+/// points. 0 for a graph without length or that is not one tree.
 fn near_share(
     positions: &[[f64; 3]],
     parents: &[Option<usize>],
@@ -336,49 +334,29 @@ fn near_share(
     trunk_radius_m: f64,
     pipe_exponent: f64,
 ) -> f64 {
-    let nodes: Vec<SkeletonNode> = positions
-        .iter()
-        .zip(parents)
-        .enumerate()
-        .map(|(id, (p, &parent))| SkeletonNode {
-            id,
-            parent,
-            position: Point3::from(*p),
-            radius_m: 0.0,
-        })
-        .collect();
-    let Ok(skeleton) = Skeleton::new(nodes) else {
+    let node = |id: usize, radius_m: f64| SkeletonNode {
+        id,
+        parent: parents[id],
+        position: Point3::from(positions[id]),
+        radius_m,
+    };
+    let Ok(flat) = Skeleton::new((0..positions.len()).map(|id| node(id, 0.0)).collect()) else {
         return 0.0;
     };
-    let w = skeleton.carried_length_m();
-    let w_root = w[skeleton.root()];
-    let (mut near, mut total) = (0.0, 0.0);
-    for (i, (a, parent)) in positions.iter().zip(parents).enumerate() {
-        let Some(b) = parent.and_then(|j| positions.get(j)) else {
-            continue;
-        };
-        let radius = if w_root > 0.0 {
-            trunk_radius_m * (w[i] / w_root).powf(1.0 / pipe_exponent)
-        } else {
-            0.0
-        };
-        let reach2 = (radius + NEAR_CLOUD_M).powi(2);
-        let (a, b) = (Vector3::from(*a), Vector3::from(*b));
-        let len = (b - a).norm();
-        let n = ((len / MODEL_SAMPLE_M).ceil() as usize).clamp(1, MAX_SAMPLES_PER_EDGE);
-        let piece = len / n as f64;
-        for k in 0..n {
-            let q = a + (b - a) * ((k as f64 + 0.5) / n as f64);
-            let d2 = tree
-                .nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z])
-                .distance;
-            total += piece;
-            if d2 <= reach2 {
-                near += piece;
-            }
-        }
+    let w = flat.carried_length_m();
+    let w_root = w[flat.root()];
+    if w_root <= 0.0 {
+        return 0.0;
     }
-    if total > 0.0 { near / total } else { 0.0 }
+    let radius = |id: usize| trunk_radius_m * (w[id] / w_root).powf(1.0 / pipe_exponent);
+    match Skeleton::new(
+        (0..positions.len())
+            .map(|id| node(id, radius(id)))
+            .collect(),
+    ) {
+        Ok(piped) => model_near_cloud(&piped, tree),
+        Err(_) => 0.0,
+    }
 }
 
 /// Remove the `candidates` (lists of nodes, each with its subtree) that no point needs
