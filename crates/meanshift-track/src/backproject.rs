@@ -21,6 +21,9 @@ pub struct BackProjector {
     /// `bin_value` followed by zeros, long enough that any sum of offsets lands in it:
     /// a pixel with a value out of range reads a zero without a branch.
     padded: Vec<u8>,
+    /// For a one-dimensional histogram: the channel read and the back-projection value of
+    /// each of its 256 levels, so that a pixel costs one lookup.
+    direct: Option<(usize, Box<[u8; 256]>)>,
 }
 
 impl BackProjector {
@@ -47,11 +50,16 @@ impl BackProjector {
         let offsets = hist.offset_tables(total as u32);
         let mut padded = bin_value.clone();
         padded.resize(total * dims + 1, 0);
+        let direct = match offsets.as_slice() {
+            [(channel, offset)] => Some((*channel, Box::new(offset.map(|k| padded[k as usize])))),
+            _ => None,
+        };
         Ok(Self {
             hist,
             bin_value,
             offsets,
             padded,
+            direct,
         })
     }
 
@@ -114,12 +122,13 @@ impl BackProjector {
     /// One run of pixels: table lookups only, one copy of the loop per dimension count.
     fn project_row(&self, pixels: &[u8], channels: usize, out: &mut [u8]) {
         let table = self.padded.as_slice();
-        match self.offsets.as_slice() {
-            [(c0, t0)] => {
-                for (p, d) in pixels.chunks_exact(channels).zip(out.iter_mut()) {
-                    *d = table[t0[usize::from(p[*c0])] as usize];
-                }
+        if let Some((c0, levels)) = &self.direct {
+            for (p, d) in pixels.chunks_exact(channels).zip(out.iter_mut()) {
+                *d = levels[usize::from(p[*c0])];
             }
+            return;
+        }
+        match self.offsets.as_slice() {
             [(c0, t0), (c1, t1)] => {
                 for (p, d) in pixels.chunks_exact(channels).zip(out.iter_mut()) {
                     let k = t0[usize::from(p[*c0])] + t1[usize::from(p[*c1])];

@@ -6,8 +6,6 @@
 //! equal bit for bit, which the parity fixtures check. Note that gray pixels (R = G = B) get
 //! hue 0, which is red: a saturation mask is needed to keep them out of a red hue model.
 
-use std::sync::OnceLock;
-
 use image::{GrayImage, ImageBuffer, Rgb, RgbImage};
 
 use crate::error::{Result, TrackError};
@@ -36,41 +34,44 @@ pub enum ChannelOrder {
     Bgr,
 }
 
-struct Tables {
-    /// `round(255 << 12 / v)` (`sdiv_table`).
-    saturation: [i32; 256],
-    /// `round(180 << 12 / (6 diff))` (`hdiv_table180`).
-    hue: [i32; 256],
-}
+/// `255 << HSV_SHIFT`: OpenCV's saturation table holds `round(SATURATION_NUMERATOR / v)`
+/// (`sdiv_table` in `color_hsv.simd.hpp`).
+const SATURATION_NUMERATOR: f32 = (255 << HSV_SHIFT) as f32;
+/// `(180 << HSV_SHIFT) / 6`: OpenCV's hue table holds `round((180 << 12) / (6 diff))`
+/// (`hdiv_table180`), which is `round(HUE_NUMERATOR / diff)`.
+const HUE_NUMERATOR: f32 = ((HUE_RANGE << HSV_SHIFT) / 6) as f32;
+/// 1.5 * 2^23: adding it to an `f32` of magnitude below 2^22 leaves the value rounded half to
+/// even to an integer in the low mantissa bits, plus `ROUNDING_OFFSET`.
+const ROUNDING_MAGIC: f32 = 12_582_912.0;
+/// The integer part of `ROUNDING_MAGIC`'s mantissa.
+const ROUNDING_OFFSET: i32 = 0x40_0000;
 
-fn tables() -> &'static Tables {
-    static TABLES: OnceLock<Tables> = OnceLock::new();
-    TABLES.get_or_init(|| {
-        let mut saturation = [0; 256];
-        let mut hue = [0; 256];
-        for i in 1..256 {
-            // OpenCV: saturate_cast<int>(double), i.e. round half to even.
-            saturation[i] = (f64::from(255 << HSV_SHIFT) / i as f64).round_ties_even() as i32;
-            hue[i] = (f64::from(180 << HSV_SHIFT) / (6.0 * i as f64)).round_ties_even() as i32;
-        }
-        Tables { saturation, hue }
-    })
+/// `round_ties_even(numerator / denominator)` as an integer, for quotients below 2^22, without
+/// a division table and without a float-to-integer conversion (the integer is read from the
+/// bits of `quotient + 1.5 * 2^23`), so that a loop of it vectorises.
+///
+/// Exact wherever OpenCV uses its tables: for `numerator` = 255 * 4096 or 30 * 4096 and an
+/// 8-bit `denominator`, the `f32` quotient is off the true one by at most 2^-24 of it
+/// (below 0.07 / denominator), while a quotient that is not a half-integer is at least
+/// 0.5 / denominator away from one, so the rounding goes the same way; half-integers are
+/// represented exactly. The tests check every denominator against OpenCV's formula.
+#[inline(always)]
+fn rounded_quotient(numerator: f32, denominator: i32) -> i32 {
+    let q = numerator / denominator.max(1) as f32;
+    ((q + ROUNDING_MAGIC).to_bits() & 0x7F_FFFF) as i32 - ROUNDING_OFFSET
 }
 
 /// HSV of one 8-bit RGB colour, exactly as OpenCV's `COLOR_RGB2HSV`: hue 0..179 (degrees / 2),
 /// saturation and value 0..255.
-pub fn rgb_to_hsv(rgb: [u8; 3]) -> [u8; 3] {
-    hsv_with(tables(), rgb)
-}
-
 #[inline(always)]
-fn hsv_with(t: &Tables, [r, g, b]: [u8; 3]) -> [u8; 3] {
+pub fn rgb_to_hsv([r, g, b]: [u8; 3]) -> [u8; 3] {
     let (r, g, b) = (i32::from(r), i32::from(g), i32::from(b));
     let v = r.max(g).max(b);
-    let vmin = r.min(g).min(b);
-    let diff = v - vmin;
+    let diff = v - r.min(g).min(b);
     let round = 1 << (HSV_SHIFT - 1);
-    let s = (diff * t.saturation[v as usize & 0xff] + round) >> HSV_SHIFT;
+    // OpenCV's fixed point: s = (diff * sdiv_table[v] + round) >> 12, the tables computed.
+    // Where v or diff is 0 the table holds 0 and so does the product's other factor.
+    let s = (diff * rounded_quotient(SATURATION_NUMERATOR, v) + round) >> HSV_SHIFT;
     // OpenCV's three cases (red, green or blue the largest, in that order of precedence),
     // written as selects rather than branches: on a noisy image which channel is largest
     // is a coin toss, and mispredicted branches cost more than the arithmetic.
@@ -78,15 +79,9 @@ fn hsv_with(t: &Tables, [r, g, b]: [u8; 3]) -> [u8; 3] {
     let from_blue = r - g + 4 * diff;
     let h = if v == g { from_green } else { from_blue };
     let h = if v == r { g - b } else { h };
-    let h = (h * t.hue[diff as usize & 0xff] + round) >> HSV_SHIFT;
+    let h = (h * rounded_quotient(HUE_NUMERATOR, diff) + round) >> HSV_SHIFT;
     let h = h + (HUE_RANGE as i32 & (h >> 31));
-    [h.clamp(0, 255) as u8, s as u8, v as u8]
-}
-
-/// A converter from RGB to HSV with its tables looked up once, for pixel loops.
-pub(crate) fn hsv_converter() -> impl Fn([u8; 3]) -> [u8; 3] {
-    let t = tables();
-    move |rgb| hsv_with(t, rgb)
+    [h as u8, s as u8, v as u8]
 }
 
 /// Gray level of one 8-bit RGB colour, exactly as OpenCV's `COLOR_RGB2GRAY`
@@ -201,12 +196,11 @@ fn convert_into(image: &RgbImage, order: ChannelOrder, region: PixelRect, out: &
 }
 
 /// The conversion loop, one copy per channel order so that the order is not decided per
-/// pixel.
+/// pixel. A plain loop over pixels of [`rgb_to_hsv`]: without table reads it vectorises.
 fn convert_rows<const BGR: bool>(image: &RgbImage, region: PixelRect, out: &mut HsvImage) {
     if region.is_empty() {
         return;
     }
-    let t = tables();
     let width = image.width() as usize;
     let (x0, x1) = (region.x as usize, region.right() as usize);
     let src = image.as_raw();
@@ -214,69 +208,23 @@ fn convert_rows<const BGR: bool>(image: &RgbImage, region: PixelRect, out: &mut 
     for y in region.y as usize..region.bottom() as usize {
         let start = (y * width + x0) * 3;
         let end = (y * width + x1) * 3;
-        let (src, dst) = (&src[start..end], &mut dst[start..end]);
-        let mut blocks = src.chunks_exact(3 * BLOCK);
-        let mut out = dst.chunks_exact_mut(3 * BLOCK);
-        for (s, d) in (&mut blocks).zip(&mut out) {
-            convert_block::<BGR>(t, s, d);
-        }
-        for (s, d) in blocks
-            .remainder()
-            .chunks_exact(3)
-            .zip(out.into_remainder().chunks_exact_mut(3))
-        {
-            let rgb = if BGR {
-                [s[2], s[1], s[0]]
-            } else {
-                [s[0], s[1], s[2]]
-            };
-            d.copy_from_slice(&hsv_with(t, rgb));
-        }
+        convert_run::<BGR>(&src[start..end], &mut dst[start..end]);
     }
 }
 
-/// Pixels converted together: the arithmetic of a block runs in vector lanes, only the two
-/// division-table reads per pixel are scalar.
-const BLOCK: usize = 16;
-
-/// [`hsv_with`] on [`BLOCK`] pixels (`src` and `dst` hold exactly `3 * BLOCK` bytes).
-#[inline(always)]
-fn convert_block<const BGR: bool>(t: &Tables, src: &[u8], dst: &mut [u8]) {
-    let mut r = [0i32; BLOCK];
-    let mut g = [0i32; BLOCK];
-    let mut b = [0i32; BLOCK];
-    for (i, p) in src.chunks_exact(3).enumerate().take(BLOCK) {
-        let (first, last) = if BGR { (p[2], p[0]) } else { (p[0], p[2]) };
-        r[i] = i32::from(first);
-        g[i] = i32::from(p[1]);
-        b[i] = i32::from(last);
-    }
-    let mut v = [0i32; BLOCK];
-    let mut diff = [0i32; BLOCK];
-    for i in 0..BLOCK {
-        v[i] = r[i].max(g[i]).max(b[i]);
-        diff[i] = v[i] - r[i].min(g[i]).min(b[i]);
-    }
-    let mut sdiv = [0i32; BLOCK];
-    let mut hdiv = [0i32; BLOCK];
-    for i in 0..BLOCK {
-        sdiv[i] = t.saturation[v[i] as usize & 0xff];
-        hdiv[i] = t.hue[diff[i] as usize & 0xff];
-    }
-    let round = 1 << (HSV_SHIFT - 1);
-    let mut out = [[0u8; 3]; BLOCK];
-    for i in 0..BLOCK {
-        let s = (diff[i] * sdiv[i] + round) >> HSV_SHIFT;
-        let from_green = b[i] - r[i] + 2 * diff[i];
-        let from_blue = r[i] - g[i] + 4 * diff[i];
-        let h = if v[i] == g[i] { from_green } else { from_blue };
-        let h = if v[i] == r[i] { g[i] - b[i] } else { h };
-        let h = (h * hdiv[i] + round) >> HSV_SHIFT;
-        let h = h + (HUE_RANGE as i32 & (h >> 31));
-        out[i] = [h.clamp(0, 255) as u8, s as u8, v[i] as u8];
-    }
-    for (d, o) in dst.chunks_exact_mut(3).zip(&out) {
-        d.copy_from_slice(o);
+/// [`rgb_to_hsv`] over a run of interleaved pixels (`src` and `dst` of one length).
+#[inline]
+pub(crate) fn convert_run<const BGR: bool>(src: &[u8], dst: &mut [u8]) {
+    for (s, d) in src.chunks_exact(3).zip(dst.chunks_exact_mut(3)) {
+        let rgb = if BGR {
+            [s[2], s[1], s[0]]
+        } else {
+            [s[0], s[1], s[2]]
+        };
+        let [h, sat, v] = rgb_to_hsv(rgb);
+        d[0] = h;
+        d[1] = sat;
+        d[2] = v;
     }
 }
 
@@ -358,15 +306,39 @@ mod tests {
         assert_eq!(rgb_to_gray([255, 0, 0]), 76);
     }
 
-    /// OpenCV's scalar code as written, with its branches, for the branchless version to be
-    /// checked against.
-    fn reference_hsv([r, g, b]: [u8; 3]) -> [u8; 3] {
-        let t = tables();
+    /// OpenCV's division tables as it builds them (`saturate_cast<int>` of a double, round
+    /// half to even).
+    fn opencv_tables() -> ([i32; 256], [i32; 256]) {
+        let mut saturation = [0; 256];
+        let mut hue = [0; 256];
+        for i in 1..256 {
+            saturation[i] = (f64::from(255 << HSV_SHIFT) / i as f64).round_ties_even() as i32;
+            hue[i] = (f64::from(180 << HSV_SHIFT) / (6.0 * i as f64)).round_ties_even() as i32;
+        }
+        (saturation, hue)
+    }
+
+    #[test]
+    fn computed_divisions_equal_opencvs_tables() {
+        let (saturation, hue) = opencv_tables();
+        for i in 1..256 {
+            assert_eq!(
+                rounded_quotient(SATURATION_NUMERATOR, i),
+                saturation[i as usize]
+            );
+            assert_eq!(rounded_quotient(HUE_NUMERATOR, i), hue[i as usize]);
+        }
+    }
+
+    /// OpenCV's scalar code as written, with its branches and tables, for the branchless,
+    /// table-free version to be checked against.
+    fn reference_hsv(tables: &([i32; 256], [i32; 256]), [r, g, b]: [u8; 3]) -> [u8; 3] {
+        let (saturation, hue) = tables;
         let (r, g, b) = (i32::from(r), i32::from(g), i32::from(b));
         let v = r.max(g).max(b);
         let diff = v - r.min(g).min(b);
         let round = 1 << (HSV_SHIFT - 1);
-        let s = (diff * t.saturation[v as usize] + round) >> HSV_SHIFT;
+        let s = (diff * saturation[v as usize] + round) >> HSV_SHIFT;
         let h = if v == r {
             g - b
         } else if v == g {
@@ -374,7 +346,7 @@ mod tests {
         } else {
             r - g + 4 * diff
         };
-        let mut h = (h * t.hue[diff as usize] + round) >> HSV_SHIFT;
+        let mut h = (h * hue[diff as usize] + round) >> HSV_SHIFT;
         if h < 0 {
             h += HUE_RANGE as i32;
         }
@@ -382,31 +354,30 @@ mod tests {
     }
 
     #[test]
-    fn branchless_conversion_equals_opencvs_branches() {
-        // Every third level of each channel plus the extremes and ties: 88^3 colours.
-        let levels: Vec<u8> = (0..=255u8).step_by(3).chain([1, 2, 254, 255]).collect();
-        for &r in &levels {
-            for &g in &levels {
-                for &b in &levels {
-                    assert_eq!(
-                        rgb_to_hsv([r, g, b]),
-                        reference_hsv([r, g, b]),
-                        "{r} {g} {b}"
-                    );
-                }
+    fn branchless_conversion_equals_opencvs_branches_on_every_colour() {
+        let tables = opencv_tables();
+        // All 2^24 colours, one image row per red level, through the image loop (the
+        // vectorised path) in both channel orders.
+        let mut row = RgbImage::new(256 * 256, 1);
+        let mut bgr = HsvImage::new(1, 1).unwrap();
+        let mut rgb = HsvImage::new(1, 1).unwrap();
+        for r in 0..=255u8 {
+            for (i, p) in row.pixels_mut().enumerate() {
+                p.0 = [r, (i >> 8) as u8, i as u8];
+            }
+            rgb.from_image_into(&row, ChannelOrder::Rgb);
+            bgr.from_image_into(&row, ChannelOrder::Bgr);
+            for (i, p) in row.pixels().enumerate() {
+                let [r, g, b] = p.0;
+                let x = i as u32;
+                assert_eq!(rgb.get(x, 0), Some(reference_hsv(&tables, [r, g, b])));
+                assert_eq!(bgr.get(x, 0), Some(reference_hsv(&tables, [b, g, r])));
             }
         }
-        // Wider than a block, so that both the block and the remainder paths run.
-        let img = RgbImage::from_fn(37, 3, |x, y| {
-            Rgb([(x * 7) as u8, (y * 90) as u8, ((x * y * 13) % 256) as u8])
-        });
-        let mut into = HsvImage::new(1, 1).unwrap();
-        into.from_image_into(&img, ChannelOrder::Bgr);
-        assert_eq!(into, HsvImage::from_image(&img, ChannelOrder::Bgr));
-        for (x, y, p) in img.enumerate_pixels() {
-            let [r, g, b] = p.0;
-            assert_eq!(into.get(x, y), Some(reference_hsv([b, g, r])), "{x} {y}");
-        }
+        assert_eq!(
+            rgb_to_hsv([12, 200, 7]),
+            reference_hsv(&tables, [12, 200, 7])
+        );
     }
 
     #[test]

@@ -6,7 +6,7 @@ use image::RgbImage;
 use nalgebra::Point2;
 
 use crate::histogram::Histogram;
-use crate::hsv::{ChannelRange, hsv_converter, rgb_to_gray};
+use crate::hsv::{ChannelRange, convert_run, rgb_to_gray};
 use crate::meanshift::{Moments, TermCriteria, moments_from_f64_sums};
 use crate::model::{AppearanceModel, MarkerModel};
 use crate::rect::PixelRect;
@@ -125,6 +125,9 @@ pub(crate) struct Region {
     p: Vec<f64>,
     /// Pixel scratch of a kernel step.
     pixels: Vec<(i32, i32, u32, f64)>,
+    /// One row of the region converted to HSV (hue models), converted a row at a time so
+    /// that the conversion runs in vector lanes apart from the table lookups.
+    hsv_row: Vec<u8>,
 }
 
 /// A model and a mask as table lookups: per feature channel and value, the histogram bin's
@@ -240,13 +243,13 @@ impl Region {
         }
         match appearance {
             AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. } => {
-                self.fill_rows(lookup, frame, rect, filter, kernel, hsv_converter());
+                self.fill_rows::<true>(lookup, frame, rect, filter, kernel, |p| p);
             }
             AppearanceModel::Rgb { .. } => {
-                self.fill_rows(lookup, frame, rect, filter, kernel, |p| p);
+                self.fill_rows::<false>(lookup, frame, rect, filter, kernel, |p| p);
             }
             AppearanceModel::Gray { .. } => {
-                self.fill_rows(lookup, frame, rect, filter, kernel, |p| {
+                self.fill_rows::<false>(lookup, frame, rect, filter, kernel, |p| {
                     [rgb_to_gray(p), 0, 0]
                 });
             }
@@ -255,9 +258,10 @@ impl Region {
 
     /// The pixel loop of [`Region::fill`], one copy per feature conversion: every pixel of a
     /// row weighed without a branch on the filter, then the pixels the filter rejects set to
-    /// weight 0 (no bin).
+    /// weight 0 (no bin). With `HSV` a row is first converted whole into `hsv_row` and
+    /// `features` applies to the HSV pixels.
     #[inline(always)]
-    fn fill_rows(
+    fn fill_rows<const HSV: bool>(
         &mut self,
         lookup: &Lookup,
         frame: &RgbImage,
@@ -287,11 +291,21 @@ impl Region {
             let f = features([p[0], p[1], p[2]]);
             (t0[usize::from(f[0])] + t1[usize::from(f[1])] + t2[usize::from(f[2])]) as usize
         };
+        let mut hsv_row = std::mem::take(&mut self.hsv_row);
+        if HSV {
+            hsv_row.resize(width * 3, 0);
+        }
         for (r, y) in (rect.y..rect.bottom() as i32).enumerate() {
             let start = y as usize * stride + rect.x as usize * 3;
             let row = &raw[start..start + width * 3];
+            let features_row = if HSV {
+                convert_run::<false>(row, &mut hsv_row);
+                &hsv_row[..]
+            } else {
+                row
+            };
             let out = &mut self.weights[r * width..(r + 1) * width];
-            for (o, p) in out.iter_mut().zip(row.chunks_exact(3)) {
+            for (o, p) in out.iter_mut().zip(features_row.chunks_exact(3)) {
                 *o = values.get(entry(p)).copied().unwrap_or(0.0);
             }
             if let Some((s, prev)) = previous {
@@ -299,12 +313,13 @@ impl Region {
             }
             if kernel {
                 let out = &mut self.bins[r * width..(r + 1) * width];
-                for (o, p) in out.iter_mut().zip(row.chunks_exact(3)) {
+                for (o, p) in out.iter_mut().zip(features_row.chunks_exact(3)) {
                     *o = bins.get(entry(p)).copied().unwrap_or(NO_BIN);
                 }
             }
             self.reject_in_row(filter, rect, r, y, kernel);
         }
+        self.hsv_row = hsv_row;
     }
 
     /// Weight 0 and no bin for the pixels of row `r` (image row `y`) of `rect` that `filter`
