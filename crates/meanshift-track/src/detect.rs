@@ -117,12 +117,17 @@ pub(crate) struct Labeler {
     /// The area labelled in the last run (image coordinates).
     area: PixelRect,
     labels: Vec<u32>,
+    /// The pixels at or above the threshold in the last run, row by row (indices into
+    /// `labels`).
+    foreground: Vec<u32>,
     parent: Vec<u32>,
     sums: Vec<[f64; 7]>,
     bounds: Vec<[i32; 4]>,
 }
 
 const NONE: u32 = u32::MAX;
+/// Pixels of a row tested together for any foreground before they are visited one by one.
+const SKIP_CHUNK: usize = 32;
 
 fn find(parent: &mut [u32], mut a: u32) -> u32 {
     // Path halving; the loop ends because parents point to smaller or equal labels.
@@ -167,39 +172,53 @@ impl Labeler {
         let at = |x: usize, y: usize| weights[offset + y * stride + x];
         self.labels.clear();
         self.labels.resize(w * h, NONE);
+        self.foreground.clear();
         self.parent.clear();
+        let g = gap.max(1);
         for y in 0..h {
-            for x in 0..w {
-                if at(x, y) < threshold {
+            let row = &weights[offset + y * stride..offset + y * stride + w];
+            // Most of a gate is background: skip runs of it a chunk at a time (a branch-free
+            // test per chunk, which vectorises). NaN counts as foreground, as below.
+            let mut x0 = 0;
+            for chunk in row.chunks(SKIP_CHUNK) {
+                let start = x0;
+                x0 += chunk.len();
+                if chunk.iter().fold(true, |all, &v| all & (v < threshold)) {
                     continue;
                 }
-                let mut label = NONE;
-                let join = |l: u32, label: &mut u32, parent: &mut Vec<u32>| {
-                    if l == NONE {
-                        return;
+                for (x, &v) in (start..).zip(chunk) {
+                    if v < threshold {
+                        continue;
                     }
-                    *label = if *label == NONE {
-                        find(parent, l)
-                    } else {
-                        union(parent, *label, l)
+                    let mut label = NONE;
+                    let join = |l: u32, label: &mut u32, parent: &mut Vec<u32>| {
+                        if l == NONE {
+                            return;
+                        }
+                        *label = if *label == NONE {
+                            find(parent, l)
+                        } else {
+                            union(parent, *label, l)
+                        };
                     };
-                };
-                // Neighbours already visited within the gap: to the left on this row, and
-                // the rows above.
-                for dx in 1..=gap.max(1).min(x) {
-                    join(self.labels[y * w + x - dx], &mut label, &mut self.parent);
-                }
-                for dy in 1..=gap.max(1).min(y) {
-                    let row = (y - dy) * w;
-                    for xx in x.saturating_sub(gap.max(1))..(x + gap.max(1) + 1).min(w) {
-                        join(self.labels[row + xx], &mut label, &mut self.parent);
+                    // Neighbours already visited within the gap: to the left on this row,
+                    // and the rows above.
+                    for dx in 1..=g.min(x) {
+                        join(self.labels[y * w + x - dx], &mut label, &mut self.parent);
                     }
+                    for dy in 1..=g.min(y) {
+                        let above = (y - dy) * w;
+                        for xx in x.saturating_sub(g)..(x + g + 1).min(w) {
+                            join(self.labels[above + xx], &mut label, &mut self.parent);
+                        }
+                    }
+                    if label == NONE {
+                        label = self.parent.len() as u32;
+                        self.parent.push(label);
+                    }
+                    self.labels[y * w + x] = label;
+                    self.foreground.push((y * w + x) as u32);
                 }
-                if label == NONE {
-                    label = self.parent.len() as u32;
-                    self.parent.push(label);
-                }
-                self.labels[y * w + x] = label;
             }
         }
         let n = self.parent.len();
@@ -208,17 +227,12 @@ impl Labeler {
         self.bounds.clear();
         self.bounds
             .resize(n, [i32::MAX, i32::MAX, i32::MIN, i32::MIN]);
-        for y in 0..h {
-            for x in 0..w {
-                let l = self.labels[y * w + x];
-                if l == NONE {
-                    continue;
-                }
-                let root = find(&mut self.parent, l) as usize;
-                let v = f64::from(at(x, y));
-                let (xi, yi) = (area.x + x as i32, area.y + y as i32);
-                accumulate(&mut self.sums[root], &mut self.bounds[root], xi, yi, v);
-            }
+        for &i in &self.foreground {
+            let (x, y) = (i as usize % w, i as usize / w);
+            let root = find(&mut self.parent, self.labels[i as usize]) as usize;
+            let v = f64::from(at(x, y));
+            let (xi, yi) = (area.x + x as i32, area.y + y as i32);
+            accumulate(&mut self.sums[root], &mut self.bounds[root], xi, yi, v);
         }
         let mut out = Vec::new();
         for (root, (s, b)) in self.sums.iter().zip(&self.bounds).enumerate() {

@@ -52,51 +52,59 @@ impl Streak<'_> {
     /// The streak weight (0..255) of colour `p` over background `b` is 255 times the
     /// coverage up to [`STREAK_FULL_COVERAGE`], 0 off the mixing line, below
     /// [`STREAK_MIN_COVERAGE`] or where the background is within [`STREAK_MIN_CONTRAST`] of
-    /// the marker's colour. Computed without branches, eight pixels at a time, which the
-    /// compiler vectorises.
-    fn raise_row(&self, weights: &mut [f32], row: &[u8], background: &[u8]) {
-        const LANES: usize = 8;
+    /// the marker's colour. Computed without branches in two plain loops (the row and its
+    /// background split into channel planes in `planar`, then the arithmetic over the
+    /// planes), which the compiler vectorises.
+    fn raise_row(&self, weights: &mut [f32], row: &[u8], background: &[u8], planar: &mut Vec<f32>) {
+        let n = weights.len().min(row.len() / 3).min(background.len() / 3);
+        planar.clear();
+        planar.resize(6 * n, 0.0);
+        let (pixel, back) = planar.split_at_mut(3 * n);
+        split_planes(&row[..3 * n], pixel);
+        split_planes(&background[..3 * n], back);
+        let (p0, rest) = pixel.split_at(n);
+        let (p1, p2) = rest.split_at(n);
+        let (b0, rest) = back.split_at(n);
+        let (b1, b2) = rest.split_at(n);
         let m = self.colour;
-        let pixels = row.chunks(3 * LANES).zip(background.chunks(3 * LANES));
-        for (out, (p, b)) in weights.chunks_mut(LANES).zip(pixels) {
-            // Planar: the pixel's channels, then the background's.
-            let (mut pf, mut bf) = ([0.0f32; 3 * LANES], [0.0f32; 3 * LANES]);
-            for (f, &v) in pf.iter_mut().zip(p) {
-                *f = f32::from(v);
-            }
-            for (f, &v) in bf.iter_mut().zip(b) {
-                *f = f32::from(v);
-            }
-            let mut c = [[0.0f32; LANES]; 6];
-            for k in 0..LANES {
-                for ch in 0..3 {
-                    c[ch][k] = pf[3 * k + ch];
-                    c[3 + ch][k] = bf[3 * k + ch];
-                }
-            }
-            let mut streak = [0.0f32; LANES];
-            for (k, s) in streak.iter_mut().enumerate() {
-                let d = [m[0] - c[3][k], m[1] - c[4][k], m[2] - c[5][k]];
-                let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                let e = [c[0][k] - c[3][k], c[1][k] - c[4][k], c[2][k] - c[5][k]];
-                let ed = e[0] * d[0] + e[1] * d[1] + e[2] * d[2];
-                let a = ed / dd;
-                let r = [e[0] - a * d[0], e[1] - a * d[1], e[2] - a * d[2]];
-                let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-                let limit = STREAK_RESIDUAL[0].max(STREAK_RESIDUAL[1] * a.min(1.0) * dd.sqrt());
-                let on_line = dd >= STREAK_MIN_CONTRAST * STREAK_MIN_CONTRAST
-                    && ed >= STREAK_MIN_COVERAGE * dd
-                    && rr <= limit * limit;
-                *s = if on_line {
-                    255.0 * (a / STREAK_FULL_COVERAGE).min(1.0)
-                } else {
-                    0.0
-                };
-            }
-            for (w, s) in out.iter_mut().zip(streak) {
-                *w = w.max(s);
-            }
+        let weights = &mut weights[..n];
+        for i in 0..n {
+            let d = [m[0] - b0[i], m[1] - b1[i], m[2] - b2[i]];
+            let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let e = [p0[i] - b0[i], p1[i] - b1[i], p2[i] - b2[i]];
+            let ed = e[0] * d[0] + e[1] * d[1] + e[2] * d[2];
+            let a = ed / dd;
+            let r = [e[0] - a * d[0], e[1] - a * d[1], e[2] - a * d[2]];
+            let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            let limit = STREAK_RESIDUAL[0].max(STREAK_RESIDUAL[1] * a.min(1.0) * dd.sqrt());
+            let on_line = dd >= STREAK_MIN_CONTRAST * STREAK_MIN_CONTRAST
+                && ed >= STREAK_MIN_COVERAGE * dd
+                && rr <= limit * limit;
+            let streak = if on_line {
+                255.0 * (a / STREAK_FULL_COVERAGE).min(1.0)
+            } else {
+                0.0
+            };
+            weights[i] = weights[i].max(streak);
         }
+    }
+}
+
+/// Interleaved 3-channel bytes into three `f32` planes (`planes` holds the three planes one
+/// after the other, each `pixels.len() / 3` long).
+fn split_planes(pixels: &[u8], planes: &mut [f32]) {
+    let n = pixels.len() / 3;
+    let (c0, rest) = planes.split_at_mut(n);
+    let (c1, c2) = rest.split_at_mut(n);
+    for (((p, x0), x1), x2) in pixels
+        .chunks_exact(3)
+        .zip(c0.iter_mut())
+        .zip(c1.iter_mut())
+        .zip(c2.iter_mut())
+    {
+        *x0 = f32::from(p[0]);
+        *x1 = f32::from(p[1]);
+        *x2 = f32::from(p[2]);
     }
 }
 
@@ -128,6 +136,8 @@ pub(crate) struct Region {
     /// One row of the region converted to HSV (hue models), converted a row at a time so
     /// that the conversion runs in vector lanes apart from the table lookups.
     hsv_row: Vec<u8>,
+    /// A row and its background as channel planes, for the streak weights.
+    planar: Vec<f32>,
 }
 
 /// A model and a mask as table lookups: per feature channel and value, the histogram bin's
@@ -309,7 +319,7 @@ impl Region {
                 *o = values.get(entry(p)).copied().unwrap_or(0.0);
             }
             if let Some((s, prev)) = previous {
-                s.raise_row(out, row, &prev[start..start + width * 3]);
+                s.raise_row(out, row, &prev[start..start + width * 3], &mut self.planar);
             }
             if kernel {
                 let out = &mut self.bins[r * width..(r + 1) * width];
