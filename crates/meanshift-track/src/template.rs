@@ -96,14 +96,48 @@ fn ncc(a: &[f32], b: &[f32]) -> f64 {
     ncc_in(a, a.len().max(1), b, a.len().max(1), None)
 }
 
+/// The quick path's sums, known when neither the template nor the frame's patch has an
+/// unknown pixel: the template's sum and sum of squares, and, where known beforehand (from a
+/// summed-area table of the patch), the window's.
+#[derive(Debug, Clone, Copy)]
+struct Quick {
+    template: (f64, f64),
+    window: Option<(f64, f64)>,
+}
+
 /// [`ncc`] of the patch `a` (rows of `width`) against the equally sized window of `b` (rows of
-/// `b_stride`, from its start). `quick`: the sum and the sum of squares of `a`, given only when
-/// neither `a` nor the window of `b` has an unknown pixel, for the quick path.
-fn ncc_in(a: &[f32], width: usize, b: &[f32], b_stride: usize, quick: Option<(f64, f64)>) -> f64 {
+/// `b_stride`, from its start), by the quick path when `quick` is given.
+fn ncc_in(a: &[f32], width: usize, b: &[f32], b_stride: usize, quick: Option<Quick>) -> f64 {
     let rows = a.len() / width;
     let row = |j: usize| &b[j * b_stride..j * b_stride + width];
     let (n, sa, sb, saa, sbb, sab);
-    if let Some((a_sum, a_squares)) = quick {
+    if let Some(Quick {
+        template: (a_sum, a_squares),
+        window: Some((s1, s2)),
+    }) = quick
+    {
+        // Only the products; in the same lanes and order as below, so the result is the same.
+        let mut p4 = [0.0f64; 4];
+        for j in 0..rows {
+            let (a_row, b_row) = (&a[j * width..(j + 1) * width], row(j));
+            let (a4, b4) = (a_row.chunks_exact(4), b_row.chunks_exact(4));
+            let tail = a4.remainder().iter().zip(b4.remainder());
+            for (x, y) in a4.zip(b4) {
+                for k in 0..4 {
+                    p4[k] += f64::from(x[k]) * f64::from(y[k]);
+                }
+            }
+            for (&x, &y) in tail {
+                p4[0] += f64::from(x) * f64::from(y);
+            }
+        }
+        let sp = (p4[0] + p4[1]) + (p4[2] + p4[3]);
+        (n, sa, sb, saa, sbb, sab) = (a.len(), a_sum, s1, a_squares, s2, sp);
+    } else if let Some(Quick {
+        template: (a_sum, a_squares),
+        window: None,
+    }) = quick
+    {
         // Gray levels are integers, so their sums (below 2^53) are exact in any order; the
         // products are summed in another order than the slow path's (within 1e-15). Four
         // lanes of each, which the compiler vectorises.
@@ -158,6 +192,47 @@ fn ncc_in(a: &[f32], width: usize, b: &[f32], b_stride: usize, quick: Option<(f6
         return 0.0;
     }
     ((sab - sa * sb / nf) / (va * vb).sqrt()).clamp(-1.0, 1.0)
+}
+
+/// Summed-area tables of a patch's values and squares (`(width + 1) x (rows + 1)`, a zero
+/// row and column first), for the sums of any window in four reads.
+struct SummedArea {
+    stride: usize,
+    sums: Vec<f64>,
+    squares: Vec<f64>,
+}
+
+impl SummedArea {
+    fn of(patch: &[f32], width: usize, rows: usize) -> Self {
+        let stride = width + 1;
+        let mut sums = vec![0.0; stride * (rows + 1)];
+        let mut squares = vec![0.0; stride * (rows + 1)];
+        for (j, row) in patch.chunks_exact(width).take(rows).enumerate() {
+            let (mut s, mut q) = (0.0, 0.0);
+            for (i, &v) in row.iter().enumerate() {
+                let v = f64::from(v);
+                s += v;
+                q += v * v;
+                let k = (j + 1) * stride + i + 1;
+                sums[k] = sums[k - stride] + s;
+                squares[k] = squares[k - stride] + q;
+            }
+        }
+        Self {
+            stride,
+            sums,
+            squares,
+        }
+    }
+
+    /// Sum and sum of squares of the `width` x `height` window whose first pixel is `(u, v)`.
+    fn window(&self, u: usize, v: usize, width: usize, height: usize) -> (f64, f64) {
+        let at = |t: &[f64], x: usize, y: usize| t.get(y * self.stride + x).copied().unwrap_or(0.0);
+        let sum = |t: &[f64]| {
+            at(t, u + width, v + height) - at(t, u, v + height) - at(t, u + width, v) + at(t, u, v)
+        };
+        (sum(&self.sums), sum(&self.squares))
+    }
 }
 
 /// Sum and sum of squares of `values` in order (f64), or `None` when one is unknown.
@@ -264,10 +339,20 @@ impl Template {
         let stride = self.width + 2 * reach;
         // The wide patch's first column is `cx - width / 2 - reach`: that of the template
         // anchored `reach` pixels to the left.
-        patch_at(frame, (cx, cy), stride, self.height + 2 * reach, scratch);
+        let rows = self.height + 2 * reach;
+        patch_at(frame, (cx, cy), stride, rows, scratch);
         let quick = self.quick_sums(scratch);
+        // The windows' sums from summed-area tables of the patch: gray levels are integers,
+        // so these sums are exact and equal to summing each window.
+        let tables = quick.map(|_| SummedArea::of(scratch, stride, rows));
         for (k, o) in out.iter_mut().enumerate().take(side * side) {
             let (u, v) = (k % side, k / side);
+            let quick = quick.map(|template| Quick {
+                template,
+                window: tables
+                    .as_ref()
+                    .map(|t| t.window(u, v, self.width, self.height)),
+            });
             *o = ncc_in(
                 &self.values,
                 self.width,
@@ -437,7 +522,10 @@ impl Template {
                 return block[w as usize * side + u as usize];
             }
             patch_at(frame, (x, y), self.width, self.height, scratch);
-            let quick = self.quick_sums(scratch);
+            let quick = self.quick_sums(scratch).map(|template| Quick {
+                template,
+                window: None,
+            });
             ncc_in(&self.values, self.width, scratch, self.width, quick)
         };
         let sub = |l: f64, c: f64, r: f64| {
