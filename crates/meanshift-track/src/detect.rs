@@ -473,4 +473,94 @@ mod tests {
         assert_eq!(l.blobs(&pair, r, r, 0.5, 1, 1).len(), 2);
         assert_eq!(l.blobs(&pair, r, r, 0.5, 1, 3).len(), 1);
     }
+
+    /// Components by breadth-first search (pixels at or above `threshold`, Chebyshev
+    /// distance up to `gap`), as `(pixels, mass)` sorted by mass, for the labelling to be
+    /// checked against.
+    fn components(
+        weights: &[f32],
+        w: usize,
+        h: usize,
+        threshold: f32,
+        gap: usize,
+    ) -> Vec<(usize, f64)> {
+        let on = |k: usize| weights[k] >= threshold || weights[k].is_nan();
+        let mut seen = vec![false; w * h];
+        let mut out = Vec::new();
+        for start in 0..w * h {
+            if seen[start] || !on(start) {
+                continue;
+            }
+            seen[start] = true;
+            let (mut queue, mut pixels, mut mass) = (vec![start], 0, 0.0);
+            while let Some(k) = queue.pop() {
+                pixels += 1;
+                mass += f64::from(weights[k]);
+                let (x, y) = ((k % w) as i64, (k / w) as i64);
+                let g = gap as i64;
+                for yy in (y - g).max(0)..(y + g + 1).min(h as i64) {
+                    for xx in (x - g).max(0)..(x + g + 1).min(w as i64) {
+                        let n = yy as usize * w + xx as usize;
+                        if !seen[n] && on(n) {
+                            seen[n] = true;
+                            queue.push(n);
+                        }
+                    }
+                }
+            }
+            out.push((pixels, mass));
+        }
+        out.sort_by(|a, b| b.1.total_cmp(&a.1));
+        out
+    }
+
+    #[test]
+    fn wide_rows_skip_background_and_find_every_component() {
+        // 100 x 30: blobs across the 32-pixel chunk edges, single pixels, a diagonal, a
+        // pair one gap apart, and a view (`within`) that starts mid-row.
+        let (w, h) = (100usize, 30usize);
+        let mut weights = vec![0.0f32; w * h];
+        let mut put = |x: usize, y: usize, v: f32| weights[y * w + x] = v;
+        for y in 4..9 {
+            for x in 29..36 {
+                put(x, y, 100.0 + (x * y) as f32);
+            }
+        }
+        for k in 0..10 {
+            put(60 + k, 12 + k, 80.0);
+        }
+        put(63, 2, 90.0);
+        put(64, 2, 91.0);
+        put(95, 28, 70.0);
+        put(10, 20, 60.0);
+        put(12, 20, 65.0);
+        for y in 15..25 {
+            put(31, y, 55.0);
+            put(32, y, 57.0);
+        }
+        let rect = PixelRect::new(-3, 5, w as i32, h as i32);
+        let mut l = Labeler::default();
+        for gap in [1, 2] {
+            let found = l.blobs(&weights, rect, rect, 50.0, 1, gap);
+            let expected = components(&weights, w, h, 50.0, gap);
+            assert_eq!(found.len(), expected.len(), "gap {gap}");
+            for (b, (pixels, mass)) in found.iter().zip(&expected) {
+                assert_eq!(b.pixels, *pixels, "gap {gap}");
+                assert!((b.mass - mass).abs() < 1e-9, "gap {gap}");
+            }
+        }
+        // The pair at (10, 20) and (12, 20) is one blob with a gap of 2, two without.
+        assert_eq!(
+            l.blobs(&weights, rect, rect, 50.0, 1, 2).len() + 1,
+            l.blobs(&weights, rect, rect, 50.0, 1, 1).len()
+        );
+        // A view that starts inside a chunk sees only its part of the first square.
+        let within = PixelRect::new(30, 5, 40, 30);
+        let part = l.blobs(&weights, rect, within, 50.0, 1, 1);
+        let square = part
+            .iter()
+            .find(|b| b.bounds.y == 9)
+            .expect("the first square");
+        assert_eq!(square.pixels, 5 * 3, "{part:?}");
+    }
 }

@@ -742,6 +742,67 @@ mod tests {
         assert_eq!(kernels, 2, "the kernel (RGB) model's bins were checked");
     }
 
+    /// The streak weight of one pixel as its definition reads, for the plane loop to be
+    /// checked against.
+    fn streak_of(m: [f32; 3], p: [f32; 3], b: [f32; 3]) -> f32 {
+        let d = [m[0] - b[0], m[1] - b[1], m[2] - b[2]];
+        let e = [p[0] - b[0], p[1] - b[1], p[2] - b[2]];
+        let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if dd < STREAK_MIN_CONTRAST * STREAK_MIN_CONTRAST {
+            return 0.0;
+        }
+        let ed = e[0] * d[0] + e[1] * d[1] + e[2] * d[2];
+        if ed < STREAK_MIN_COVERAGE * dd {
+            return 0.0;
+        }
+        let a = ed / dd;
+        let r = [e[0] - a * d[0], e[1] - a * d[1], e[2] - a * d[2]];
+        let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+        let limit = STREAK_RESIDUAL[0].max(STREAK_RESIDUAL[1] * a.min(1.0) * dd.sqrt());
+        if rr > limit * limit {
+            return 0.0;
+        }
+        255.0 * (a / STREAK_FULL_COVERAGE).min(1.0)
+    }
+
+    #[test]
+    fn streak_weights_of_a_row_are_each_pixels_own() {
+        let previous = RgbImage::new(1, 1);
+        let streak = Streak {
+            previous: &previous,
+            colour: [210.0, 30.0, 25.0],
+        };
+        let mut planar = Vec::new();
+        // Rows of many lengths (vector blocks and remainders), pixels on and off the line
+        // between each background and the marker's colour.
+        for n in [0usize, 1, 7, 8, 9, 31, 45] {
+            let background: Vec<u8> = (0..3 * n).map(|k| ((k * 53 + 11) % 200) as u8).collect();
+            let row: Vec<u8> = (0..3 * n)
+                .map(|k| {
+                    let (px, c) = (k / 3, k % 3);
+                    let b = f32::from(background[k]);
+                    let share = [0.1f32, 0.3, 0.6, 0.9][px % 4];
+                    let mixed = share * streak.colour[c] + (1.0 - share) * b;
+                    let noise = if px % 5 == 0 { 40.0 } else { 0.0 };
+                    (mixed + noise).clamp(0.0, 255.0) as u8
+                })
+                .collect();
+            let mut weights: Vec<f32> = (0..n).map(|i| (i % 3) as f32 * 60.0).collect();
+            let before = weights.clone();
+            streak.raise_row(&mut weights, &row, &background, &mut planar);
+            let mut raised = 0;
+            for i in 0..n {
+                let f = |v: &[u8]| [v[3 * i], v[3 * i + 1], v[3 * i + 2]].map(f32::from);
+                let s = streak_of(streak.colour, f(&row), f(&background));
+                assert_eq!(weights[i], before[i].max(s), "length {n}, pixel {i}");
+                raised += usize::from(s > before[i]);
+            }
+            if n >= 8 {
+                assert!(raised > 0, "length {n}: no pixel on a streak");
+            }
+        }
+    }
+
     /// The one-channel lookup (hue under a saturation/value mask, gray) weighs every pixel
     /// as the general three-table lookup does, and is used where it applies.
     #[test]
