@@ -90,6 +90,32 @@ impl Streak<'_> {
     }
 }
 
+/// Per pixel of a row (3 channels each), its entry of `table` (a weight or a bin), `missing`
+/// where the lookup rejects it: by the one-channel form (`one`: the form and its table by
+/// the first channel) when there is one, else by the general three-table `entry`.
+#[inline(always)]
+fn look_up_row<T: Copy>(
+    out: &mut [T],
+    pixels: &[u8],
+    missing: T,
+    one: Option<(&OneChannel, &[T; 256])>,
+    table: &[T],
+    features: &impl Fn([u8; 3]) -> [u8; 3],
+    entry: &impl Fn(&[u8]) -> usize,
+) {
+    if let Some((one, by_first)) = one {
+        for (o, p) in out.iter_mut().zip(pixels.chunks_exact(3)) {
+            let f = features([p[0], p[1], p[2]]);
+            let v = by_first[usize::from(f[0])];
+            *o = if one.passes(&f) { v } else { missing };
+        }
+    } else {
+        for (o, p) in out.iter_mut().zip(pixels.chunks_exact(3)) {
+            *o = table.get(entry(p)).copied().unwrap_or(missing);
+        }
+    }
+}
+
 /// Interleaved 3-channel bytes into three `f32` planes (`planes` holds the three planes one
 /// after the other, each `pixels.len() / 3` long).
 fn split_planes(pixels: &[u8], planes: &mut [f32]) {
@@ -380,33 +406,15 @@ impl Region {
                 row
             };
             let out = &mut self.weights[r * width..(r + 1) * width];
-            if let Some(one) = one_channel.as_deref() {
-                for (o, p) in out.iter_mut().zip(features_row.chunks_exact(3)) {
-                    let f = features([p[0], p[1], p[2]]);
-                    let w = one.weight[usize::from(f[0])];
-                    *o = if one.passes(&f) { w } else { 0.0 };
-                }
-            } else {
-                for (o, p) in out.iter_mut().zip(features_row.chunks_exact(3)) {
-                    *o = values.get(entry(p)).copied().unwrap_or(0.0);
-                }
-            }
+            let one = one_channel.as_deref().map(|o| (o, &o.weight));
+            look_up_row(out, features_row, 0.0, one, values, &features, &entry);
             if let Some((s, prev)) = previous {
                 s.raise_row(out, row, &prev[start..start + width * 3], &mut self.planar);
             }
             if kernel {
                 let out = &mut self.bins[r * width..(r + 1) * width];
-                if let Some(one) = one_channel.as_deref() {
-                    for (o, p) in out.iter_mut().zip(features_row.chunks_exact(3)) {
-                        let f = features([p[0], p[1], p[2]]);
-                        let b = one.bin[usize::from(f[0])];
-                        *o = if one.passes(&f) { b } else { NO_BIN };
-                    }
-                } else {
-                    for (o, p) in out.iter_mut().zip(features_row.chunks_exact(3)) {
-                        *o = bins.get(entry(p)).copied().unwrap_or(NO_BIN);
-                    }
-                }
+                let one = one_channel.as_deref().map(|o| (o, &o.bin));
+                look_up_row(out, features_row, NO_BIN, one, bins, &features, &entry);
             }
             self.reject_in_row(filter, rect, r, y, kernel);
         }

@@ -113,10 +113,18 @@ fn ncc_in(a: &[f32], width: usize, b: &[f32], b_stride: usize, quick: Option<Qui
     let (n, sa, sb, saa, sbb, sab);
     if let Some(Quick {
         template: (a_sum, a_squares),
-        window: Some((s1, s2)),
+        window,
     }) = quick
     {
-        // Only the products; in the same lanes and order as below, so the result is the same.
+        // Gray levels are integers, so the window's sums (below 2^53) are exact in any order,
+        // from a summed-area table or summed here; the products are summed in four lanes,
+        // which the compiler vectorises (another order than the slow path's, within 1e-15).
+        let (s1, s2) = window.unwrap_or_else(|| {
+            (0..rows).flat_map(row).fold((0.0, 0.0), |(s, q), &y| {
+                let y = f64::from(y);
+                (s + y, q + y * y)
+            })
+        });
         let mut p4 = [0.0f64; 4];
         for j in 0..rows {
             let (a_row, b_row) = (&a[j * width..(j + 1) * width], row(j));
@@ -132,37 +140,6 @@ fn ncc_in(a: &[f32], width: usize, b: &[f32], b_stride: usize, quick: Option<Qui
             }
         }
         let sp = (p4[0] + p4[1]) + (p4[2] + p4[3]);
-        (n, sa, sb, saa, sbb, sab) = (a.len(), a_sum, s1, a_squares, s2, sp);
-    } else if let Some(Quick {
-        template: (a_sum, a_squares),
-        window: None,
-    }) = quick
-    {
-        // Gray levels are integers, so their sums (below 2^53) are exact in any order; the
-        // products are summed in another order than the slow path's (within 1e-15). Four
-        // lanes of each, which the compiler vectorises.
-        let (mut p4, mut s14, mut s24) = ([0.0f64; 4], [0.0f64; 4], [0.0f64; 4]);
-        for j in 0..rows {
-            let (a_row, b_row) = (&a[j * width..(j + 1) * width], row(j));
-            let (a4, b4) = (a_row.chunks_exact(4), b_row.chunks_exact(4));
-            let tail = a4.remainder().iter().zip(b4.remainder());
-            for (x, y) in a4.zip(b4) {
-                for k in 0..4 {
-                    let (x, y) = (f64::from(x[k]), f64::from(y[k]));
-                    p4[k] += x * y;
-                    s14[k] += y;
-                    s24[k] += y * y;
-                }
-            }
-            for (&x, &y) in tail {
-                let (x, y) = (f64::from(x), f64::from(y));
-                p4[0] += x * y;
-                s14[0] += y;
-                s24[0] += y * y;
-            }
-        }
-        let total = |l: [f64; 4]| (l[0] + l[1]) + (l[2] + l[3]);
-        let (s1, s2, sp) = (total(s14), total(s24), total(p4));
         (n, sa, sb, saa, sbb, sab) = (a.len(), a_sum, s1, a_squares, s2, sp);
     } else {
         let (mut n1, mut s1, mut s2, mut s11, mut s22, mut s12) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
