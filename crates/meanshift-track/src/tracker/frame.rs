@@ -362,7 +362,11 @@ impl Tracker {
                     } else {
                         status
                     };
-                    let o = m.found(q, status, &self.config, depth, frame_index);
+                    let mut o = m.found(q, status, &self.config, depth, frame_index);
+                    if o.confidence < TRUSTED_CONFIDENCE {
+                        // Followed, but not a place to stand behind: reported as an estimate.
+                        o.status = TrackStatus::Predicted;
+                    }
                     m.learn_appearance(q.confidence, context);
                     if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
                         t.update(frame, q.center, CONTEXT_RATE, &mut self.patch);
@@ -401,7 +405,7 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     let found = || {
         obs[start..]
             .iter()
-            .filter(|o| o.status.found())
+            .filter(|o| followed(o))
             .filter_map(|o| o.center.map(|c| (c, o.window)))
     };
     let (count, sum) = found().fold((0_u32, Vector2::zeros()), |(n, s), (c, _)| {
@@ -417,7 +421,8 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
         return None;
     }
     let jumped_in = obs[start.saturating_sub(1)..].windows(2).any(|w| {
-        w[1].status == TrackStatus::Recovered
+        followed(&w[1])
+            && w[1].status != TrackStatus::Tracked
             && matches!((w[0].center, w[1].center), (Some(a), Some(b))
                 if (b - a).norm() > PARKED_JUMP_WINDOWS * side)
     });
@@ -464,6 +469,49 @@ mod tests {
             .iter()
             .skip(1)
             .all(|o| o.status == TrackStatus::Tracked)
+    }
+
+    #[test]
+    fn a_measurement_too_unlike_the_marker_is_followed_but_not_reported_found() -> Result<()> {
+        let (mut t, side, home) = setup()?;
+        let frame = RgbImage::new(t.width, t.height);
+        let at = |dx: f64, confidence: f64| Measured {
+            center: Point2::new(home.x + dx, home.y),
+            window: PixelRect::centered_at(home, 11, 11),
+            holds: PixelRect::centered_at(home, 11, 11),
+            confidence,
+            moments: None,
+        };
+        let b = t.markers[1].home;
+        let b_found = |confidence| {
+            let mut q = at(0.0, confidence);
+            q.center = b;
+            Some((q, TrackStatus::Tracked, None))
+        };
+        for (dx, confidence) in [
+            (0.3 * side, TRUSTED_CONFIDENCE - 0.05),
+            (0.6 * side, TRUSTED_CONFIDENCE),
+        ] {
+            let results = vec![
+                Some((at(dx, confidence), TrackStatus::Tracked, None)),
+                b_found(0.9),
+            ];
+            t.record(&frame, None, results, &[false, false]);
+        }
+        let obs = &t.tracks[0].observations;
+        let (weak, trusted) = (obs[obs.len() - 2], obs[obs.len() - 1]);
+        // The weak one is an estimate: not found, its own confidence (not 0: not coasting),
+        // and the place the tracker followed.
+        assert_eq!(weak.status, TrackStatus::Predicted);
+        assert!((weak.confidence - (TRUSTED_CONFIDENCE - 0.05)).abs() < 1e-12);
+        assert_eq!(weak.center, Some(Point2::new(home.x + 0.3 * side, home.y)));
+        // Followed all the same: the next, trusted one is tracked, not recovered.
+        assert_eq!(trusted.status, TrackStatus::Tracked);
+        assert_eq!(
+            trusted.center,
+            Some(Point2::new(home.x + 0.6 * side, home.y))
+        );
+        Ok(())
     }
 
     #[test]

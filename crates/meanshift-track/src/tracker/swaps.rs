@@ -127,7 +127,7 @@ impl Tracker {
         let obs = &self.tracks[k].observations;
         obs[obs.len().saturating_sub(SWAP_FRAMES)..]
             .iter()
-            .filter(|o| o.status.found())
+            .filter(|o| followed(o))
             .filter_map(|o| o.center)
             .collect()
     }

@@ -20,7 +20,10 @@ pub enum TrackStatus {
     /// Measured after the motion model was surprised (a release, a jump) or after frames
     /// without a measurement, by detection and joint assignment.
     Recovered,
-    /// Not measured; the centre is the motion model's prediction (coasting).
+    /// Not measured, or measured too unlike the marker to be trusted (confidence under 0.6,
+    /// which the tracker still follows): the centre is the tracker's estimate, not a place
+    /// to stand behind. The confidence tells the two apart: 0 for the motion model's
+    /// prediction (coasting), the weak measurement's own confidence otherwise.
     Predicted,
     /// Not measured for too long; no centre.
     Lost,
@@ -60,12 +63,13 @@ pub struct Observation {
     /// to the marker's own on the first frame, capped at 1), times how well the blob's width
     /// matches the marker's and how much of the marker's area it holds. For the kernel (RGB)
     /// model, the Bhattacharyya coefficient instead of the weight share. 1 for user-set
-    /// centres; 0 when nothing was measured (`predicted`, `lost`).
+    /// centres; 0 when nothing was measured (coasting `predicted`, `lost`); a `predicted`
+    /// frame with a confidence was measured under 0.6 (see [`TrackStatus::Predicted`]).
     ///
     /// What it is worth, measured on the stress sequences (`docs/validation.md`, "What a
     /// confidence value means"): a `tracked` frame at 0.8 or more was within 3 px of the
-    /// truth in 98–99.7 % of frames; below 0.6, found frames were more often wrong than
-    /// right; `recovered` frames were more than 8 px off in 6–15 % of frames even at high
+    /// truth in 98–99.7 % of frames; below 0.6, measurements were more often wrong than
+    /// right, which is why they are reported `predicted`; `recovered` frames were more than 8 px off in 6–15 % of frames even at high
     /// confidence (detection after a loss can take a look-alike). Take `recovered` frames
     /// as provisional until the track is `tracked` again.
     pub confidence: f64,
