@@ -9,7 +9,8 @@
 //! - [`reconstruct`] with [`ColonizeConfig`] (every parameter derived from the cloud unless
 //!   set, see [`Parameters`]):
 //!   1. validation, median point spacing, trunk radius from a circle fitted to the lowest
-//!      slice, clusters beyond the largest bridge set aside as outliers;
+//!      slice, clusters beyond the largest bridge and isolated points (fewer than 3 others
+//!      within 15 spacings: stray returns) set aside as outliers;
 //!   2. growth, by default [`Growth::Auto`]: space colonization, kept unless less than
 //!      [`AUTO_NEAR_SHARE`] of it lies within 2 cm of the points (a leafy crown it crosses
 //!      through the air), then geodesic level sets ([`Growth::LevelSets`]).

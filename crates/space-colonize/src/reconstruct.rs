@@ -55,7 +55,8 @@ pub struct GrowthReport {
     pub bridges: usize,
     /// Total length of the bridges, metres.
     pub bridged_length_m: f64,
-    /// Points in clusters beyond the largest bridge from the main cluster (not modelled).
+    /// Points not modelled: in clusters beyond the largest bridge from the main cluster, or
+    /// isolated (fewer than 3 other points within 15 median spacings: stray returns).
     pub outlier_points: usize,
     /// Points of the main cluster growth never reached.
     pub unreached_points: usize,

@@ -73,9 +73,13 @@ fn gappy_tree13_stays_one_tree() {
     let m = metrics(&pts, &model.skeleton);
     assert!(m.within_5cm > 0.95, "{m:?}");
     assert!(!model.growth.radius_fits_used);
-    assert_eq!(
-        model.growth.unreached_points + model.growth.outlier_points,
-        0
+    assert_eq!(model.growth.unreached_points, 0);
+    // Only stray points are set aside (fewer than 3 others within 15 spacings): 26 of
+    // 6,992, no cluster of the tree.
+    assert!(
+        model.growth.outlier_points <= pts.len() / 200,
+        "{:?}",
+        model.growth
     );
 }
 

@@ -355,3 +355,42 @@ fn the_default_grows_by_level_sets_only_where_colonization_runs_through_the_air(
         assert!(fa.mean_distance_m < fc.mean_distance_m, "{fa:?} {fc:?}");
     }
 }
+
+#[test]
+fn stray_points_around_a_tree_do_not_become_branches() {
+    use rand_xoshiro::SplitMix64;
+    use rand_xoshiro::rand_core::{RngCore, SeedableRng};
+    let truth = small(3).generate().unwrap();
+    let clean = reconstruct(&truth.points, &ColonizeConfig::default()).unwrap();
+    // 300 stray returns (3 % of the points) spread through the tree's box grown by 30 cm.
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in &truth.points {
+        for c in 0..3 {
+            lo[c] = lo[c].min(p[c] - 0.3);
+            hi[c] = hi[c].max(p[c] + 0.3);
+        }
+    }
+    let mut rng = SplitMix64::seed_from_u64(41);
+    let mut uniform = || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    let mut points = truth.points.clone();
+    for _ in 0..300 {
+        points.push(Point3::new(
+            lo[0] + (hi[0] - lo[0]) * uniform(),
+            lo[1] + (hi[1] - lo[1]) * uniform(),
+            lo[2] + (hi[2] - lo[2]) * uniform(),
+        ));
+    }
+    let model = reconstruct(&points, &ColonizeConfig::default()).unwrap();
+    // Nearly all of them set aside (a few land on the tree and are points of it).
+    assert!(model.growth.outlier_points >= 250, "{:?}", model.growth);
+    // The model of the tree is the clean cloud's: no branches through the air to them.
+    let (e, ec) = (
+        skeleton_error(&model.skeleton, &truth.skeleton),
+        skeleton_error(&clean.skeleton, &truth.skeleton),
+    );
+    assert!(e.length_ratio < 1.1 * ec.length_ratio, "{e:?} clean {ec:?}");
+    assert!(e.mean_skeleton_error_m < 0.012, "{e:?}");
+    assert!(e.truth_length_found > 0.97, "{e:?}");
+    let m = metrics(&truth.points, &model.skeleton);
+    assert!(m.within_2cm > 0.99, "{m:?}");
+}
