@@ -23,6 +23,9 @@ pub const MIN_POINTS: usize = 10;
 /// Spacing is measured on at most this many points (a deterministic stride), enough for a
 /// median to three digits.
 const SPACING_SAMPLE: usize = 20_000;
+/// Copies of a point (at exactly its place) the spacing looks past for its nearest other
+/// point.
+const SPACING_COPIES: usize = 16;
 /// Smallest principal standard deviation accepted, relative to the largest: a tree is
 /// never flat to a thousandth of its size.
 const MIN_RELATIVE_THICKNESS: f64 = 1e-3;
@@ -242,7 +245,9 @@ fn check_thickness(points: &[Point3<f64>]) -> Result<()> {
 
 pub(crate) fn median_spacing(pts: &[[f64; 3]], tree: &PointTree) -> Result<f64> {
     let stride = pts.len().div_ceil(SPACING_SAMPLE).max(1);
-    let k = std::num::NonZeroUsize::MIN.saturating_add(1);
+    // The point itself and its copies come first: a cloud merged or exported twice holds
+    // every point more than once, and its spacing is that of the distinct points.
+    let k = std::num::NonZeroUsize::MIN.saturating_add(SPACING_COPIES);
     let mut d: Vec<f64> = pts
         .iter()
         .step_by(stride)
@@ -255,10 +260,13 @@ pub(crate) fn median_spacing(pts: &[[f64; 3]], tree: &PointTree) -> Result<f64> 
         })
         .collect();
     if d.is_empty() {
-        return Err(ColonizeError::Degenerate {
-            extents_m: [0.0; 3],
-            min_m: MIN_THICKNESS_M,
-        });
+        return Err(ColonizeError::param(
+            "points",
+            format!(
+                "every sampled point has more than {SPACING_COPIES} copies at its place: \
+                 remove duplicate points"
+            ),
+        ));
     }
     d.sort_by(f64::total_cmp);
     Ok(d[d.len() / 2])

@@ -394,3 +394,25 @@ fn stray_points_around_a_tree_do_not_become_branches() {
     let m = metrics(&truth.points, &model.skeleton);
     assert!(m.within_2cm > 0.99, "{m:?}");
 }
+
+#[test]
+fn a_cloud_holding_every_point_twice_is_the_same_tree() {
+    let truth = small(3).generate().unwrap();
+    let once = reconstruct(&truth.points, &ColonizeConfig::default()).unwrap();
+    let twice: Vec<_> = truth.points.iter().chain(&truth.points).copied().collect();
+    // Before, the spacing saw only each point's copy (0 m) and the cloud was called
+    // degenerate.
+    let model = reconstruct(&twice, &ColonizeConfig::default()).unwrap();
+    let (a, b) = (once.parameters.spacing_m, model.parameters.spacing_m);
+    assert!((a - b).abs() < 0.05 * a, "spacing {a} once, {b} twice");
+    let e = skeleton_error(&model.skeleton, &truth.skeleton);
+    assert!(e.mean_skeleton_error_m < 0.012, "{e:?}");
+    assert!(e.truth_length_found > 0.97, "{e:?}");
+    // Seventeen copies of every point: told as what it is.
+    let many: Vec<_> = truth.points[..500]
+        .iter()
+        .flat_map(|p| std::iter::repeat_n(*p, 17))
+        .collect();
+    let err = reconstruct(&many, &ColonizeConfig::default()).unwrap_err();
+    assert!(err.to_string().contains("duplicate"), "{err}");
+}
