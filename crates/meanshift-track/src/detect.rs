@@ -202,26 +202,13 @@ impl Labeler {
                         };
                     };
                     // Neighbours already visited within the gap: to the left on this row,
-                    // and the rows above. When the pixel to the left is foreground it has
-                    // joined every one of those but the rows' column `x + g` already, so
-                    // joining it and that column gives the same components.
-                    let left = if x > 0 {
-                        self.labels[y * w + x - 1]
-                    } else {
-                        NONE
-                    };
-                    let from = if left == NONE {
-                        for dx in 1..=g.min(x) {
-                            join(self.labels[y * w + x - dx], &mut label, &mut self.parent);
-                        }
-                        x.saturating_sub(g)
-                    } else {
-                        join(left, &mut label, &mut self.parent);
-                        x + g
-                    };
+                    // and the rows above.
+                    for dx in 1..=g.min(x) {
+                        join(self.labels[y * w + x - dx], &mut label, &mut self.parent);
+                    }
                     for dy in 1..=g.min(y) {
                         let above = (y - dy) * w;
-                        for xx in from..(x + g + 1).min(w) {
+                        for xx in x.saturating_sub(g)..(x + g + 1).min(w) {
                             join(self.labels[above + xx], &mut label, &mut self.parent);
                         }
                     }
