@@ -23,6 +23,14 @@
 //! When `A`'s recent track runs along `B`'s line, moving, far from its own line, and `B`'s
 //! track is elsewhere, the two are exchanged the same way: `B` is where `A`'s track is.
 //!
+//! Before any swing line is known (two markers of one look that pass through each other
+//! during the pull, speeding up, where a constant-velocity prediction lags most), a swap
+//! shows as a bounce: both tracks turn back where the markers overlapped. Each overlap is
+//! judged once, [`CROSSING_AFTER`] frames after it: when the two paths before it run on
+//! into each other's paths after it with a constant acceleration much better than into
+//! their own, the two are exchanged from the frame they parted, and their swings are learnt
+//! again from the mended tracks.
+//!
 //! A signature is only refined by a line along the same direction that is about as tight
 //! and centred on it: a track drifting onto another marker's path fits a wider or shifted
 //! line, and letting it replace the signature would make the other path look like its own.
@@ -55,6 +63,21 @@ const STOLEN_OWN_OFFSET: f64 = 4.0;
 /// ... and moves along the other's line by at least this many windows over those frames (a
 /// still look-alike on that line is not the other marker).
 const STOLEN_MIN_TRAVEL_WINDOWS: f64 = 0.5;
+
+/// Two markers overlap (a crossing, where one can be taken for the other) when their
+/// centres are within this many windows: closer than [`TOGETHER_WINDOWS`], so that markers
+/// at rest a window and a half apart are not always together.
+const CROSSING_WINDOWS: f64 = 1.0;
+/// Frames before an overlap and frames after it over which the two paths are judged.
+const CROSSING_BEFORE: usize = 5;
+const CROSSING_AFTER: usize = 4;
+/// Least frames of each side a path must have been followed in.
+const CROSSING_MIN_SIDE: usize = 3;
+/// The crossed paths must fit a constant acceleration this much better than the paths as
+/// tracked (ratio of the summed squared residuals).
+const CROSSING_RATIO: f64 = 0.25;
+/// ... and well in themselves: root-mean-square residual, windows.
+const CROSSING_MAX_RMS_WINDOWS: f64 = 0.3;
 
 /// How far back the observations are exchanged at most (the swing history's length): a
 /// caller that reads each frame's result at once sees at most this many earlier frames of a
@@ -93,6 +116,18 @@ impl Tracker {
         let mut recent: Vec<Vec<Point2<f64>>> = (0..n).map(|k| self.recent_found(k)).collect();
         for i in 0..n {
             for j in i + 1..n {
+                if let Some(from) = self.crossed(i, j) {
+                    self.exchange(i, j, Some(from));
+                    // Each swing so far was learnt on a path that turned at the overlap, and so
+                    // was any line since: both are learnt again from the mended tracks.
+                    for k in [i, j] {
+                        self.relearn_swing(k);
+                        self.markers[k].signature = None;
+                    }
+                    recent[i] = self.recent_found(i);
+                    recent[j] = self.recent_found(j);
+                    continue;
+                }
                 let (Some(si), Some(sj)) = (self.markers[i].signature, self.markers[j].signature)
                 else {
                     continue;
@@ -114,7 +149,7 @@ impl Tracker {
                     swapped
                 };
                 if exchange {
-                    self.exchange(i, j);
+                    self.exchange(i, j, None);
                     recent[i] = self.recent_found(i);
                     recent[j] = self.recent_found(j);
                 }
@@ -173,10 +208,80 @@ impl Tracker {
             })
     }
 
+    /// Whether markers `i` and `j` crossed where their tracks bounced: they overlapped
+    /// (within [`CROSSING_WINDOWS`]) until [`CROSSING_AFTER`] frames ago, and each one's path before the overlap runs on smoothly (a constant
+    /// acceleration) into the other's path after it, much better than into its own. Two
+    /// markers of one look that pass each other while they speed up (a pull) are where a
+    /// constant-velocity prediction lags most, and can come out of the overlap exchanged
+    /// before any swing line is known. Returns the first frame to exchange from.
+    fn crossed(&self, i: usize, j: usize) -> Option<usize> {
+        let overlap =
+            CROSSING_WINDOWS * window_px(&self.markers[i]).max(window_px(&self.markers[j]));
+        let (oa, ob) = (&self.tracks[i].observations, &self.tracks[j].observations);
+        let len = oa.len().min(ob.len());
+        let apart = |f: usize| match (oa[f].center, ob[f].center) {
+            (Some(p), Some(q)) => (p - q).norm() >= overlap,
+            _ => true,
+        };
+        // They overlapped last on the frame before the judged ones, which end with this one
+        // (each overlap is judged once, so an exchange is never judged again).
+        let last = len.checked_sub(CROSSING_AFTER + 1)?;
+        if apart(last) || (last + 1..len).any(|f| !apart(f)) {
+            return None;
+        }
+        let first = (0..=last).rev().take_while(|&f| !apart(f)).last()?;
+        if first < CROSSING_BEFORE + 1 {
+            return None;
+        }
+        let path =
+            |obs: &[Observation], frames: std::ops::Range<usize>| -> Vec<(f64, Point2<f64>)> {
+                frames
+                    .filter(|&f| followed(&obs[f]))
+                    .filter_map(|f| obs[f].center.map(|c| (f as f64 - last as f64, c)))
+                    .collect()
+            };
+        let before = first - CROSSING_BEFORE..first;
+        let after = last + 1..len;
+        let (bi, bj) = (path(oa, before.clone()), path(ob, before));
+        let (ai, aj) = (path(oa, after.clone()), path(ob, after));
+        if [&bi, &bj, &ai, &aj]
+            .iter()
+            .any(|p| p.len() < CROSSING_MIN_SIDE)
+        {
+            return None;
+        }
+        let joined = |b: &[(f64, Point2<f64>)], a: &[(f64, Point2<f64>)]| {
+            let all: Vec<_> = b.iter().chain(a).copied().collect();
+            quadratic_residual(&all)
+        };
+        let keep = joined(&bi, &ai)? + joined(&bj, &aj)?;
+        let cross = joined(&bi, &aj)? + joined(&bj, &ai)?;
+        let points = (bi.len() + bj.len() + ai.len() + aj.len()) as f64;
+        let rms_limit = CROSSING_MAX_RMS_WINDOWS * overlap / CROSSING_WINDOWS;
+        (cross < CROSSING_RATIO * keep && cross / points <= rms_limit * rms_limit)
+            .then_some(last + 1)
+    }
+
+    /// Learn marker `k`'s swing again from its track's followed frames.
+    fn relearn_swing(&mut self, k: usize) {
+        let obs = &self.tracks[k].observations;
+        let swing = &mut self.markers[k].swing;
+        swing.clear();
+        for (f, o) in obs
+            .iter()
+            .enumerate()
+            .skip(obs.len().saturating_sub(MAX_REVISED_FRAMES + 1))
+        {
+            if let (true, Some(c)) = (followed(o) || o.status == TrackStatus::Set, o.center) {
+                swing.record(f as u64, c);
+            }
+        }
+    }
+
     /// Exchange what `i` and `j` know of where they are (motion, swing, surroundings), keep
-    /// what they are (name, look, home, signature), and exchange their observations since
-    /// they were last together.
-    fn exchange(&mut self, i: usize, j: usize) {
+    /// what they are (name, look, home, signature), and exchange their observations from
+    /// `from` (by default, since they were last together).
+    fn exchange(&mut self, i: usize, j: usize, from: Option<usize>) {
         let (a, b) = self.markers.split_at_mut(j);
         let (a, b) = (&mut a[i], &mut b[0]);
         std::mem::swap(&mut a.filter, &mut b.filter);
@@ -197,15 +302,45 @@ impl Tracker {
             .observations
             .len()
             .min(self.tracks[j].observations.len());
-        let from = self
-            .last_met(i, j)
-            .map_or(len.saturating_sub(SWAP_FRAMES), |met| met + 1);
+        let from = from.unwrap_or_else(|| {
+            self.last_met(i, j)
+                .map_or(len.saturating_sub(SWAP_FRAMES), |met| met + 1)
+        });
         let (ta, tb) = self.tracks.split_at_mut(j);
         let (oa, ob) = (&mut ta[i].observations, &mut tb[0].observations);
         for f in from..len {
             std::mem::swap(&mut oa[f], &mut ob[f]);
         }
     }
+}
+
+/// The summed squared residual (pixels²) of the least-squares fit of a constant acceleration
+/// `p(t) = p0 + v t + a t²/2` to the timed points, per axis; `None` when fewer than 4 points
+/// or the times do not determine the fit.
+fn quadratic_residual(points: &[(f64, Point2<f64>)]) -> Option<f64> {
+    if points.len() < 4 {
+        return None;
+    }
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atx = nalgebra::Vector3::<f64>::zeros();
+    let mut aty = nalgebra::Vector3::<f64>::zeros();
+    for &(t, p) in points {
+        let row = nalgebra::Vector3::new(1.0, t, t * t);
+        ata += row * row.transpose();
+        atx += row * p.x;
+        aty += row * p.y;
+    }
+    let chol = ata.cholesky()?;
+    let (cx, cy) = (chol.solve(&atx), chol.solve(&aty));
+    Some(
+        points
+            .iter()
+            .map(|&(t, p)| {
+                let row = nalgebra::Vector3::new(1.0, t, t * t);
+                (p.x - row.dot(&cx)).powi(2) + (p.y - row.dot(&cy)).powi(2)
+            })
+            .sum(),
+    )
 }
 
 /// Whether the recent tracks `pi` and `pj` of two markers lie along each other's lines `sj`
@@ -371,6 +506,58 @@ mod tests {
         // swapped, are not.
         assert_eq!(b[len - SWAP_FRAMES..], before[len - SWAP_FRAMES..]);
         assert_eq!(b[..len - SWAP_FRAMES], b_before[..len - SWAP_FRAMES]);
+        Ok(())
+    }
+
+    /// Two markers of one colour on one row, 40 px apart, pulled towards each other with a
+    /// constant acceleration (`pass`: through each other) or each decelerating to a turn
+    /// beside the other and going back; the tracks bounce where the markers overlap (3
+    /// frames), then run on for `CROSSING_AFTER` frames.
+    fn overlap(pass: bool) -> Result<(Tracker, Vec<Option<Point2<f64>>>)> {
+        let mut t = two_red_markers()?;
+        // Path of A (B mirrors it about x = 96): t from -8 to the end.
+        let a_at = |k: f64| -> f64 {
+            if pass {
+                76.0 + 0.25 * (k + 8.0).powi(2)
+            } else {
+                // Decelerates to its turn at 91 (10 px from B's) in the middle of the
+                // overlap, then goes back.
+                91.0 - 0.4 * (k - 1.0).powi(2)
+            }
+        };
+        let total = 8 + 3 + CROSSING_AFTER;
+        for f in 0..total {
+            let k = f as f64 - 8.0;
+            let (a, b) = (a_at(k), 192.0 - a_at(k));
+            // Where they overlap, each track keeps to its own side of the other; after it,
+            // each track is on the side it came from (a bounce, whatever the markers did).
+            let (ta, tb) = if f >= 8 { (a.min(b), a.max(b)) } else { (a, b) };
+            push(&mut t, Point2::new(ta, 30.0), Point2::new(tb, 30.0));
+        }
+        let before = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        t.repair_swaps();
+        Ok((t, before))
+    }
+
+    #[test]
+    fn two_that_passed_each_other_while_speeding_up_are_not_taken_to_have_bounced()
+    -> Result<()> {
+        let (t, before) = overlap(true)?;
+        let b = &t.tracks[1].observations;
+        // B's track now carries on along A's former track from the frame they parted.
+        let parted = 1 + 8 + 3;
+        for f in parted..b.len() {
+            assert_eq!(b[f].center, before[f], "frame {f}");
+        }
+        assert!(b[parted - 1].center != before[parted - 1]);
+        // The mended A keeps moving right, B left, as before they met.
+        let a_last = t.tracks[0].observations.last().and_then(|o| o.center);
+        assert!(a_last.is_some_and(|c| c.x > 110.0), "{a_last:?}");
+        // Markers that did turn beside each other stay as tracked.
+        let (t, before) = overlap(false)?;
+        assert_eq!(t.crossed(0, 1), None);
+        let after: Vec<_> = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        assert_eq!(after, before);
         Ok(())
     }
 
