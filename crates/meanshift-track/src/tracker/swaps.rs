@@ -540,8 +540,7 @@ mod tests {
     }
 
     #[test]
-    fn two_that_passed_each_other_while_speeding_up_are_not_taken_to_have_bounced()
-    -> Result<()> {
+    fn two_that_passed_each_other_while_speeding_up_are_not_taken_to_have_bounced() -> Result<()> {
         let (t, before) = overlap(true)?;
         let b = &t.tracks[1].observations;
         // B's track now carries on along A's former track from the frame they parted.
