@@ -305,6 +305,9 @@ const BLOB_MAX_LENGTH: f64 = 6.0;
 const MAX_CANDIDATES: usize = 16;
 /// Share of the velocity kept per frame without a measurement: a swing turns back.
 const COAST_VELOCITY_DECAY: f64 = 0.8;
+/// Windows beyond the farthest a colour marker was tracked from its home within which it
+/// is taken to stay (see [`MarkerState::hold_in_frame`]).
+const HOLD_REACH_WINDOWS: f64 = 1.0;
 
 /// What a marker looked like on the first frame, as the measurements see it.
 #[derive(Debug, Clone, Copy)]
@@ -595,6 +598,7 @@ impl Tracker {
         let (width, height) = (self.width, self.height);
         for m in &mut self.markers {
             m.predict(&self.config);
+            m.hold_in_frame((width, height));
             m.gate_var = m.filter.innovation_var(MEASUREMENT_PX);
         }
         let predictions: Vec<Point2<f64>> = self

@@ -224,6 +224,34 @@ impl MarkerState {
         }
     }
 
+    /// A colour marker predicted out of the frame although its swing about its home stays
+    /// inside it (the disc of the farthest it was tracked from home and
+    /// [`HOLD_REACH_WINDOWS`] more lies within the frame) has not left: the constant
+    /// velocity was carried out of a turn (a swing of 5–8 Hz at 30 fps turns within a
+    /// frame or two). Its prediction is brought back to that disc's edge, still, so that it
+    /// is looked for in the frame rather than as a marker that left across the border.
+    pub(super) fn hold_in_frame(&mut self, (width, height): (u32, u32)) {
+        if self.template.is_some() {
+            return;
+        }
+        let p = self.filter.position;
+        let inside =
+            p.x >= 0.0 && p.y >= 0.0 && p.x <= f64::from(width) && p.y <= f64::from(height);
+        let side = window_px(self);
+        let disc = self.reach_px + HOLD_REACH_WINDOWS * side;
+        let home = self.home;
+        let home_in_frame = home.x - disc >= 0.0
+            && home.y - disc >= 0.0
+            && home.x + disc <= f64::from(width)
+            && home.y + disc <= f64::from(height);
+        let out = p - home;
+        if inside || !home_in_frame || out.norm() <= disc {
+            return;
+        }
+        self.filter.position = home + out * (disc / out.norm());
+        self.filter.stop(side);
+    }
+
     /// Record a measurement.
     pub(super) fn found(
         &mut self,
@@ -407,4 +435,38 @@ pub(super) fn remember_distractor(
 pub(super) fn correlation_spread(usual: f64, now: f64) -> f64 {
     let at = |rho: f64| 1.0 - rho.clamp(0.0, 1.0).powi(2);
     (at(now) / at(usual).max(CORRELATION_SPREAD_FLOOR)).max(1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracker::two_red_markers;
+
+    #[test]
+    fn a_prediction_thrown_out_of_the_frame_is_held_where_the_marker_swings() -> Result<()> {
+        let mut t = two_red_markers()?;
+        let size = (t.width, t.height);
+        let m = &mut t.markers[0];
+        let home = m.home;
+        let disc = m.reach_px + HOLD_REACH_WINDOWS * window_px(m);
+        // Carried 50 px left of its home, off the 192x64 frame, at 60 px a frame.
+        m.filter.position = home + Vector2::new(-50.0, 0.0);
+        m.filter.velocity = Vector2::new(-60.0, 0.0);
+        m.hold_in_frame(size);
+        assert!((m.filter.position - (home + Vector2::new(-disc, 0.0))).norm() < 1e-9);
+        assert_eq!(m.filter.velocity, Vector2::zeros());
+        // A prediction inside the frame is left alone, however far from home.
+        let inside = home + Vector2::new(100.0, 20.0);
+        m.filter.position = inside;
+        m.filter.velocity = Vector2::new(5.0, 0.0);
+        m.hold_in_frame(size);
+        assert_eq!(m.filter.position, inside);
+        // A marker tracked out to the border may have left the frame: not held.
+        m.reach_px = home.x;
+        let off = home + Vector2::new(-50.0, 0.0);
+        m.filter.position = off;
+        m.hold_in_frame(size);
+        assert_eq!(m.filter.position, off);
+        Ok(())
+    }
 }
