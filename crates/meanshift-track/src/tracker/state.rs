@@ -235,8 +235,9 @@ impl MarkerState {
             return;
         }
         let p = self.filter.position;
-        let inside =
-            p.x >= 0.0 && p.y >= 0.0 && p.x <= f64::from(width) && p.y <= f64::from(height);
+        if p.x >= 0.0 && p.y >= 0.0 && p.x <= f64::from(width) && p.y <= f64::from(height) {
+            return;
+        }
         let side = window_px(self);
         let disc = self.reach_px + HOLD_REACH_WINDOWS * side;
         let home = self.home;
@@ -245,7 +246,7 @@ impl MarkerState {
             && home.x + disc <= f64::from(width)
             && home.y + disc <= f64::from(height);
         let out = p - home;
-        if inside || !home_in_frame || out.norm() <= disc {
+        if !home_in_frame || out.norm() <= disc {
             return;
         }
         self.filter.position = home + out * (disc / out.norm());

@@ -215,8 +215,8 @@ impl Tracker {
     /// constant-velocity prediction lags most, and can come out of the overlap exchanged
     /// before any swing line is known. Returns the first frame to exchange from.
     fn crossed(&self, i: usize, j: usize) -> Option<usize> {
-        let overlap =
-            CROSSING_WINDOWS * window_px(&self.markers[i]).max(window_px(&self.markers[j]));
+        let window = window_px(&self.markers[i]).max(window_px(&self.markers[j]));
+        let overlap = CROSSING_WINDOWS * window;
         let (oa, ob) = (&self.tracks[i].observations, &self.tracks[j].observations);
         let len = oa.len().min(ob.len());
         let apart = |f: usize| match (oa[f].center, ob[f].center) {
@@ -257,7 +257,7 @@ impl Tracker {
         let keep = joined(&bi, &ai)? + joined(&bj, &aj)?;
         let cross = joined(&bi, &aj)? + joined(&bj, &ai)?;
         let points = (bi.len() + bj.len() + ai.len() + aj.len()) as f64;
-        let rms_limit = CROSSING_MAX_RMS_WINDOWS * overlap / CROSSING_WINDOWS;
+        let rms_limit = CROSSING_MAX_RMS_WINDOWS * window;
         (cross < CROSSING_RATIO * keep && cross / points <= rms_limit * rms_limit)
             .then_some(last + 1)
     }
@@ -267,12 +267,14 @@ impl Tracker {
         let obs = &self.tracks[k].observations;
         let swing = &mut self.markers[k].swing;
         swing.clear();
+        let start = obs.len().saturating_sub(MAX_REVISED_FRAMES + 1);
         for (f, o) in obs
             .iter()
             .enumerate()
-            .skip(obs.len().saturating_sub(MAX_REVISED_FRAMES + 1))
+            .skip(start)
+            .filter(|(_, o)| followed(o))
         {
-            if let (true, Some(c)) = (followed(o) || o.status == TrackStatus::Set, o.center) {
+            if let Some(c) = o.center {
                 swing.record(f as u64, c);
             }
         }
@@ -393,6 +395,13 @@ mod tests {
         }
     }
 
+    /// `t` after [`Tracker::repair_swaps`], with A's centres before it.
+    fn repaired(mut t: Tracker) -> (Tracker, Vec<Option<Point2<f64>>>) {
+        let before = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        t.repair_swaps();
+        (t, before)
+    }
+
     /// Frames 1-3 together; then 8 frames with A on B's line and B on A's (`swapped`) or
     /// each on its own.
     fn run(swapped: bool) -> Result<(Tracker, Vec<Option<Point2<f64>>>)> {
@@ -411,9 +420,7 @@ mod tests {
         }
         t.markers[0].filter.position = Point2::new(100.0, 40.0);
         t.markers[1].filter.position = Point2::new(71.0, 30.0);
-        let before = t.tracks[0].observations.iter().map(|o| o.center).collect();
-        t.repair_swaps();
-        Ok((t, before))
+        Ok(repaired(t))
     }
 
     #[test]
@@ -459,9 +466,7 @@ mod tests {
                 Point2::new(100.0, 8.0),
             );
         }
-        let before = t.tracks[0].observations.iter().map(|o| o.center).collect();
-        t.repair_swaps();
-        Ok((t, before))
+        Ok(repaired(t))
     }
 
     #[test]
@@ -534,9 +539,7 @@ mod tests {
             let (ta, tb) = if f >= 8 { (a.min(b), a.max(b)) } else { (a, b) };
             push(&mut t, Point2::new(ta, 30.0), Point2::new(tb, 30.0));
         }
-        let before = t.tracks[0].observations.iter().map(|o| o.center).collect();
-        t.repair_swaps();
-        Ok((t, before))
+        Ok(repaired(t))
     }
 
     #[test]
