@@ -1,7 +1,7 @@
 //! A static tree model (skeleton, radii, mesh, cylinders) from a point cloud, with its fidelity.
 //!
 //! ```text
-//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth auto|colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv]
+//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth auto|colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv] [--keep-ground]
 //! ```
 //!
 //! `CLOUD`: XYZ text, PLY or PCD (kinect-io's readers), metres, Z up. Prints one JSON object:
@@ -12,7 +12,10 @@
 //! `"fidelity"` (issue 22's measure, the one the anchors AdTree and TreeQSM are compared by:
 //! `"mean_distance_m"`, `"within_2cm"`, `"model_near_cloud"`, `"axis_length_m"`),
 //! `"seconds"` (reconstruction time without file I/O or metrics), plus the `"parameters"` used
-//! and what `"growth"` did. Progress goes to stderr.
+//! and what `"growth"` did. Progress goes to stderr. A ground plane under the tree is set
+//! aside before growth (`--keep-ground` keeps it) and reported as `"ground"` (the plane it
+//! was seeded from, `normal`·p = `offset_m`; `thickness_m`, `points`, `cells`, `cell_m`),
+//! with `"fidelity_above_ground"`.
 //!
 //! With `--view-from X,Y,Z` the cloud is first reduced to what a Kinect v2 there would see
 //! (`space_colonize::camera_view`: the near half of each branch, `--depth-noise-m` along the
@@ -31,7 +34,7 @@ use treemocap::kinect_io::read_point_cloud;
 use treemocap::nalgebra::Point3;
 use treemocap::space_colonize::synthetic::{SkeletonError, SyntheticConfig, skeleton_error};
 use treemocap::space_colonize::{
-    AUTO_NEAR_SHARE, ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, Growth, GrowthReport,
+    AUTO_NEAR_SHARE, ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, Ground, Growth, GrowthReport,
     KINECT_DEPTH_NOISE_M, Metrics, Parameters, Reconstruction, Stage, ViewConfig, camera_view,
     cylinders, cylinders_to_csv, fidelity, metrics, reconstruct_with_progress, tube_mesh,
 };
@@ -73,6 +76,10 @@ struct Args {
     /// Depth noise of that view, metres (standard deviation along the ray)
     #[arg(long = "depth-noise-m", value_name = "M", default_value_t = KINECT_DEPTH_NOISE_M)]
     depth_noise_m: f64,
+    /// Grow from every point, even those on a ground plane found under the tree (by
+    /// default they are set aside and reported as `"ground"`)
+    #[arg(long = "keep-ground")]
+    keep_ground: bool,
 }
 
 /// A point as X,Y,Z.
@@ -124,6 +131,12 @@ struct Report {
     seconds: f64,
     parameters: Parameters,
     growth: GrowthReport,
+    /// The ground plane set aside before growth, if one was found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ground: Option<Ground>,
+    /// `"fidelity"` without the ground's points, which the model rightly does not reach.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    fidelity_above_ground: Option<Fidelity>,
     #[serde(skip_serializing_if = "Option::is_none")]
     truth: Option<SkeletonError>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -144,6 +157,7 @@ struct ViewReport {
 fn run(
     points: &[Point3<f64>],
     growth: Growth,
+    keep_ground: bool,
 ) -> Result<(Reconstruction, f64), Box<dyn std::error::Error>> {
     let t = Instant::now();
     let mut progress = |s: Stage| {
@@ -161,10 +175,23 @@ fn run(
     };
     let config = ColonizeConfig {
         growth,
+        remove_ground: !keep_ground,
         ..ColonizeConfig::default()
     };
     let model = reconstruct_with_progress(points, &config, &mut progress)?;
     let seconds = t.elapsed().as_secs_f64();
+    if let Some(g) = &model.ground {
+        eprintln!(
+            "[{seconds:6.2} s] set aside {} points of a ground under the tree ({} cells of \
+             {:.0} cm, {:.1}° from horizontal, {:.1} cm thick); --keep-ground grows from them \
+             too",
+            g.points,
+            g.cells,
+            100.0 * g.cell_m,
+            g.normal[2].clamp(-1.0, 1.0).acos().to_degrees(),
+            100.0 * g.thickness_m
+        );
+    }
     if let Some(share) = model.growth.colonization_near_cloud {
         eprintln!(
             "[{seconds:6.2} s] grown by {}: {:.0} % of space colonization's growth lay within \
@@ -200,6 +227,20 @@ fn report(
         seconds,
         parameters: model.parameters,
         growth: model.growth,
+        ground: model.ground.clone(),
+        fidelity_above_ground: model.ground.as_ref().map(|g| {
+            let mut on = vec![false; points.len()];
+            for &i in &g.indices {
+                on[i] = true;
+            }
+            let above: Vec<Point3<f64>> = points
+                .iter()
+                .zip(&on)
+                .filter(|(_, g)| !**g)
+                .map(|(p, _)| *p)
+                .collect();
+            fidelity(&above, &model.skeleton)
+        }),
         truth,
         view: None,
     }
@@ -248,7 +289,8 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         }
         None => whole.clone(),
     };
-    let (model, seconds) = run(&points, args.growth).map_err(|e| format!("{name}: {e}"))?;
+    let (model, seconds) =
+        run(&points, args.growth, args.keep_ground).map_err(|e| format!("{name}: {e}"))?;
     let error = truth.as_ref().map(|t| skeleton_error(&model.skeleton, t));
     if let Some(p) = &args.skeleton {
         model.skeleton.write_json(p)?;

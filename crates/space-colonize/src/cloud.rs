@@ -14,6 +14,7 @@ use crate::config::{
     PATCH_BINS, Parameters, STEP_SPACINGS,
 };
 use crate::error::{ColonizeError, Result};
+use crate::ground::{Ground, find_ground};
 
 /// Static k-d tree over points, items are indices.
 pub(crate) type PointTree = ImmutableKdTree<f64, u32, 3, 32>;
@@ -55,7 +56,10 @@ pub(crate) struct Prepared {
     /// Points of the main cluster that are not isolated (the rest are outliers: beyond the
     /// largest bridge, or without neighbours near them).
     pub main: Vec<bool>,
+    /// Points of `pts` not in `main`.
     pub outliers: usize,
+    /// The ground found under the tree; its points are not in `pts`.
+    pub ground: Option<Ground>,
     pub params: Parameters,
 }
 
@@ -108,10 +112,46 @@ pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result
     check_thickness(points)?;
     let pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
     let tree = PointTree::new_from_slice(&pts);
-    let spacing_m = match config.spacing_m {
+    let (mut pts, mut tree) = (pts, tree);
+    let mut spacing_m = match config.spacing_m {
         Some(s) => s,
         None => median_spacing(&pts, &tree)?,
     };
+    // A ground under the tree is set aside first; the rest is the tree, with its own
+    // spacing.
+    let ground = if config.remove_ground {
+        find_ground(&pts, spacing_m)
+    } else {
+        None
+    };
+    if let Some(g) = &ground {
+        let mut on = vec![false; pts.len()];
+        for &i in &g.indices {
+            on[i] = true;
+        }
+        pts = pts
+            .iter()
+            .zip(&on)
+            .filter(|(_, g)| !**g)
+            .map(|(p, _)| *p)
+            .collect();
+        if pts.len() < MIN_POINTS {
+            return Err(ColonizeError::param(
+                "points",
+                format!(
+                    "{} of {} points lie on a ground plane and {} above it, fewer than the \
+                     {MIN_POINTS} a tree needs (set remove_ground to false to keep them)",
+                    points.len() - pts.len(),
+                    points.len(),
+                    pts.len()
+                ),
+            ));
+        }
+        tree = PointTree::new_from_slice(&pts);
+        if config.spacing_m.is_none() {
+            spacing_m = median_spacing(&pts, &tree)?;
+        }
+    }
     // Kill and influence need the trunk radius, the outlier clusters need the influence,
     // and the trunk fit needs the main cluster: fit on all points first, then refit on the
     // main cluster.
@@ -139,6 +179,7 @@ pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result
         tree,
         main,
         outliers,
+        ground,
         params,
     })
 }
@@ -380,7 +421,12 @@ fn main_cluster(pts: &[[f64; 3]], gap_m: f64) -> Vec<bool> {
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    if let Some(&o) = cells.get(&(x + dx, y + dy, z + dz)) {
+                    let near = (
+                        x.saturating_add(dx),
+                        y.saturating_add(dy),
+                        z.saturating_add(dz),
+                    );
+                    if let Some(&o) = cells.get(&near) {
                         let (a, b) = (find(&mut parent, c), find(&mut parent, o));
                         if a != b {
                             parent[a] = b;

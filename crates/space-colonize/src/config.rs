@@ -131,6 +131,10 @@ pub struct ColonizeConfig {
     pub radius_fits: bool,
     /// Move nodes to the branch axis with local circle fits. Default true.
     pub centring: bool,
+    /// Look for a ground plane under the tree (the lowest surface that spreads sideways,
+    /// see [`crate::Ground`]) and set its points aside before growth. Default true; the
+    /// plane and its points are reported in [`crate::Reconstruction::ground`].
+    pub remove_ground: bool,
     /// Taubin smoothing passes along branch chains after centring. Default 3.
     pub smoothing_iterations: usize,
     /// Terminal twigs that reach less than this beyond their parent's surface are removed
@@ -160,6 +164,7 @@ impl Default for ColonizeConfig {
             pipe_exponent: PIPE_EXPONENT,
             radius_fits: true,
             centring: true,
+            remove_ground: true,
             smoothing_iterations: 3,
             min_twig_m: None,
             max_iterations: None,

@@ -495,6 +495,7 @@ fn thinned(prep: &Prepared, voxel_m: f64) -> Result<Prepared> {
         pts,
         tree,
         outliers: 0,
+        ground: prep.ground.clone(),
         params: crate::config::Parameters {
             spacing_m,
             ..prep.params

@@ -8,8 +8,10 @@
 //!
 //! - [`reconstruct`] with [`ColonizeConfig`] (every parameter derived from the cloud unless
 //!   set, see [`Parameters`]):
-//!   1. validation, median point spacing, trunk radius from a circle fitted to the lowest
-//!      slice, clusters beyond the largest bridge and isolated points (fewer than 3 others
+//!   1. validation, median point spacing, a ground plane under the tree set aside
+//!      ([`Ground`]: the lowest near-horizontal surface that fills a wide area, with next
+//!      to nothing below it), trunk radius from a circle fitted to the lowest slice,
+//!      clusters beyond the largest bridge and isolated points (fewer than 3 others
 //!      within 15 spacings: stray returns) set aside as outliers;
 //!   2. growth, by default [`Growth::Auto`]: space colonization, kept unless less than
 //!      [`AUTO_NEAR_SHARE`] of it lies within 2 cm of the points (a leafy crown it crosses
@@ -65,6 +67,7 @@ mod config;
 mod error;
 mod fidelity;
 mod geometry;
+mod ground;
 mod grow;
 mod levels;
 mod metrics;
@@ -90,6 +93,10 @@ pub use fidelity::{CANDIDATE_EDGES, Fidelity, MODEL_SAMPLE_M, fidelity};
 pub use geometry::{
     Cylinder, DEFAULT_MESH_SIDES, MAX_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv,
     tube_mesh,
+};
+pub use ground::{
+    DROP_SHARE, Ground, MAX_BELOW_SHARE, MAX_SLOPE_DEG, MAX_THICKNESS_M, MAX_TILT_DEG, MIN_FILL,
+    MIN_SURFACE_CELLS, MIN_WIDTH_CELLS,
 };
 pub use levels::{
     BRIDGE_COST, EDGE_SPACINGS, LEVEL_VOXEL_BINS, LINK_BINS, NEIGHBOURS, THIN_BELOW_VOXEL,

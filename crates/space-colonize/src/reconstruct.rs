@@ -7,6 +7,7 @@ use crate::cloud::{PointTree, Prepared, prepare};
 use crate::config::{AUTO_NEAR_SHARE, ColonizeConfig, Growth, Parameters};
 use crate::error::{ColonizeError, Result};
 use crate::fidelity::model_near_cloud;
+use crate::ground::Ground;
 use crate::grow::{Pass, grow};
 use crate::levels::{Levels, grow_levels};
 use crate::metrics::NEAR_CLOUD_M;
@@ -56,7 +57,8 @@ pub struct GrowthReport {
     /// Total length of the bridges, metres.
     pub bridged_length_m: f64,
     /// Points not modelled: in clusters beyond the largest bridge from the main cluster, or
-    /// isolated (fewer than 3 other points within 15 median spacings: stray returns).
+    /// isolated (fewer than 3 other points within 15 median spacings: stray returns). Ground
+    /// points are not counted here but in [`Reconstruction::ground`].
     pub outlier_points: usize,
     /// Points of the main cluster growth never reached.
     pub unreached_points: usize,
@@ -91,6 +93,9 @@ pub struct Reconstruction {
     pub parameters: Parameters,
     /// What growth did.
     pub growth: GrowthReport,
+    /// The ground plane found under the tree and set aside before growth
+    /// ([`ColonizeConfig::remove_ground`]); `None` when there was none (or not asked for).
+    pub ground: Option<Ground>,
 }
 
 impl Reconstruction {
@@ -321,6 +326,7 @@ pub fn reconstruct_with_progress(
         skeleton,
         branches,
         parameters: p,
+        ground: prep.ground.clone(),
     })
 }
 

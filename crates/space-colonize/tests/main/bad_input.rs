@@ -216,3 +216,28 @@ fn tiny_bins_across_a_gap_meet_the_node_bound() {
     .unwrap_err();
     assert!(matches!(err, ColonizeError::NodeLimit { .. }), "{err}");
 }
+
+#[test]
+fn a_cloud_that_is_all_ground_is_named_and_can_be_kept() {
+    // A rough patch of ground 1 m wide with three points above it: no tree.
+    let mut points: Vec<_> = (0..2_500)
+        .map(|i| {
+            let (x, y) = (f64::from(i % 50) * 0.02, f64::from(i / 50) * 0.02);
+            Point3::new(x, y, 0.004 * ((7.0 * x).sin() + (11.0 * y).cos()))
+        })
+        .collect();
+    points.extend((1..4).map(|k| Point3::new(0.5, 0.5, 0.3 * f64::from(k))));
+    match reconstruct(&points, &cfg()) {
+        Err(ColonizeError::InvalidParameter { name, reason }) => {
+            assert_eq!(name, "points");
+            assert!(reason.contains("ground"), "{reason}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // Kept, the same points are grown as given (a user asked for it).
+    let kept = ColonizeConfig {
+        remove_ground: false,
+        ..cfg()
+    };
+    assert!(reconstruct(&points, &kept).is_ok());
+}

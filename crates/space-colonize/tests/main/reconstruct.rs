@@ -416,3 +416,127 @@ fn a_cloud_holding_every_point_twice_is_the_same_tree() {
     let err = reconstruct(&many, &ColonizeConfig::default()).unwrap_err();
     assert!(err.to_string().contains("duplicate"), "{err}");
 }
+
+/// A disc of ground of `radius_m` around the trunk's foot, points `step_m` apart (jittered),
+/// rising `slope` per metre along x, with Gaussian roughness `rough_m`.
+fn ground_disc(
+    tree: &[Point3<f64>],
+    radius_m: f64,
+    step_m: f64,
+    slope: f64,
+    rough_m: f64,
+    seed: u64,
+) -> Vec<Point3<f64>> {
+    use rand_xoshiro::SplitMix64;
+    use rand_xoshiro::rand_core::{RngCore, SeedableRng};
+    let mut rng = SplitMix64::seed_from_u64(seed);
+    let mut uniform = || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    let z0 = tree.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+    let foot: Vec<&Point3<f64>> = tree.iter().filter(|p| p.z < z0 + 0.1).collect();
+    let n = foot.len() as f64;
+    let (cx, cy) = (
+        foot.iter().map(|p| p.x).sum::<f64>() / n,
+        foot.iter().map(|p| p.y).sum::<f64>() / n,
+    );
+    let k = (radius_m / step_m).ceil() as i64;
+    let mut out = Vec::new();
+    for i in -k..=k {
+        for j in -k..=k {
+            let (x, y) = (
+                (i as f64 + 0.6 * (uniform() - 0.5)) * step_m,
+                (j as f64 + 0.6 * (uniform() - 0.5)) * step_m,
+            );
+            if x.hypot(y) > radius_m {
+                continue;
+            }
+            // Box–Muller for the roughness.
+            let g = (-2.0 * uniform().max(1e-300).ln()).sqrt()
+                * (std::f64::consts::TAU * uniform()).cos();
+            out.push(Point3::new(cx + x, cy + y, z0 + slope * x + rough_m * g));
+        }
+    }
+    out
+}
+
+#[test]
+fn a_ground_around_the_trunk_is_set_aside() {
+    let truth = small(3).generate().unwrap();
+    let clean = reconstruct(&truth.points, &ColonizeConfig::default()).unwrap();
+    assert!(clean.ground.is_none(), "{:?}", clean.ground);
+    let ec = skeleton_error(&clean.skeleton, &truth.skeleton);
+    // Flat and smooth, sloping 8° and rough, and sampled four times more sparsely than the
+    // tree (a ground seen from farther away).
+    for (slope, rough_m, step_m) in [(0.0, 0.002, 0.01), (0.14, 0.008, 0.01), (0.0, 0.003, 0.04)] {
+        let ground = ground_disc(&truth.points, 1.0, step_m, slope, rough_m, 5);
+        let mut points = truth.points.clone();
+        points.extend(&ground);
+        // Grown from every point, the ground becomes branches.
+        let kept = reconstruct(
+            &points,
+            &ColonizeConfig {
+                remove_ground: false,
+                ..ColonizeConfig::default()
+            },
+        )
+        .unwrap();
+        let ek = skeleton_error(&kept.skeleton, &truth.skeleton);
+        assert!(ek.length_ratio > 2.0 * ec.length_ratio, "{ek:?}");
+        let model = reconstruct(&points, &ColonizeConfig::default()).unwrap();
+        let g = model.ground.as_ref().expect("a ground");
+        let tree_points = truth.points.len();
+        let of_ground = g.indices.iter().filter(|&&i| i >= tree_points).count();
+        let of_tree = g.indices.len() - of_ground;
+        assert!(
+            of_ground as f64 > 0.99 * ground.len() as f64,
+            "slope {slope}: {of_ground} of {} ground points",
+            ground.len()
+        );
+        // The tree keeps all but the foot of its trunk.
+        assert!(
+            of_tree < tree_points / 100,
+            "slope {slope}: {of_tree} tree points"
+        );
+        let e = skeleton_error(&model.skeleton, &truth.skeleton);
+        assert!(
+            e.length_ratio < 1.05 * ec.length_ratio,
+            "slope {slope}: {e:?} clean {ec:?}"
+        );
+        assert!(e.mean_skeleton_error_m < 0.012, "slope {slope}: {e:?}");
+        assert!(e.truth_length_found > 0.97, "slope {slope}: {e:?}");
+    }
+}
+
+#[test]
+fn no_ground_is_found_under_trees_cut_out_of_their_scene() {
+    // Thin and thick trunks cut flat at their foot (a ring of points on a plane), one-sided
+    // views, leafy crowns.
+    for seed in 0..3 {
+        for base_radius_m in [0.05, 0.3] {
+            let cases = [
+                SyntheticConfig {
+                    base_radius_m,
+                    ..small(seed)
+                },
+                SyntheticConfig {
+                    base_radius_m,
+                    view_direction: Some(Vector3::new(1.0, 0.0, 0.0)),
+                    ..small(seed)
+                },
+                SyntheticConfig {
+                    base_radius_m,
+                    leaf_points: 10_000,
+                    ..small(seed)
+                },
+            ];
+            for config in cases {
+                let tree = config.generate().unwrap();
+                let model = reconstruct(&tree.points, &ColonizeConfig::default()).unwrap();
+                assert!(
+                    model.ground.is_none(),
+                    "seed {seed}, base radius {base_radius_m} m: {:?}",
+                    model.ground
+                );
+            }
+        }
+    }
+}
