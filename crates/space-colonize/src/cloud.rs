@@ -9,9 +9,9 @@ use nalgebra::{Matrix3, Point3};
 
 use crate::circle::fit_circle;
 use crate::config::{
-    ColonizeConfig, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, LEVEL_BIN_SPACINGS,
-    MAX_GAP_INFLUENCES, MAX_PATCH_M, MIN_KILL_SPACINGS, MIN_LEVEL_BIN_M, MIN_STEP_PER_KILL,
-    PATCH_BINS, Parameters, STEP_SPACINGS,
+    ColonizeConfig, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS, KILL_PER_TRUNK_RADIUS_ONE_SIDED,
+    LEVEL_BIN_SPACINGS, MAX_GAP_INFLUENCES, MAX_PATCH_M, MIN_KILL_SPACINGS, MIN_LEVEL_BIN_M,
+    MIN_STEP_PER_KILL, ONE_SIDED_COVERAGE, PATCH_BINS, Parameters, STEP_SPACINGS,
 };
 use crate::error::{ColonizeError, Result};
 use crate::ground::{Ground, find_ground};
@@ -199,6 +199,9 @@ struct TrunkFit {
     radius_m: f64,
     fitted: bool,
     z_min: f64,
+    /// Share of the circle the fitted slice covers (1 for a full scan, 0.5–0.7 for a
+    /// one-sided view); 1 when not fitted.
+    coverage: f64,
 }
 
 fn derive(
@@ -211,20 +214,34 @@ fn derive(
         Some(r) => (r, false),
         None => (fit.radius_m, fit.fitted),
     };
-    let kill_distance_m = config
-        .kill_distance_m
-        .unwrap_or((KILL_PER_TRUNK_RADIUS * trunk_radius_m).max(MIN_KILL_SPACINGS * spacing_m));
+    // A one-sided view sees a half ring of each thick branch: a node drawn to its points
+    // sits 2r/π in front of the axis, and the ring's silhouette edges are then 1.19 r from
+    // it, beyond 1.2 r less any noise, and grew as a second, parallel chain.
+    let one_sided = fit.fitted && fit.coverage < ONE_SIDED_COVERAGE;
+    let kill_per_radius = if one_sided {
+        KILL_PER_TRUNK_RADIUS_ONE_SIDED
+    } else {
+        KILL_PER_TRUNK_RADIUS
+    };
+    let kill_at = |per_radius: f64| {
+        config
+            .kill_distance_m
+            .unwrap_or((per_radius * trunk_radius_m).max(MIN_KILL_SPACINGS * spacing_m))
+    };
+    let kill_distance_m = kill_at(kill_per_radius);
+    // Step and influence as for a full scan: only the reach of a node grows.
+    let full_scan_kill_m = kill_at(KILL_PER_TRUNK_RADIUS);
     let twig_kill_distance_m = config
         .twig_kill_distance_m
         .unwrap_or((MIN_KILL_SPACINGS * spacing_m).min(crate::config::MAX_TWIG_KILL_M));
     let step_m = config.step_m.unwrap_or(
         (STEP_SPACINGS * spacing_m)
-            .max(MIN_STEP_PER_KILL * kill_distance_m)
-            .min(0.5 * kill_distance_m),
+            .max(MIN_STEP_PER_KILL * full_scan_kill_m)
+            .min(0.5 * full_scan_kill_m),
     );
     let influence_m = config
         .influence_m
-        .unwrap_or(INFLUENCE_PER_KILL * kill_distance_m);
+        .unwrap_or(INFLUENCE_PER_KILL * full_scan_kill_m);
     let max_gap_m = config.max_gap_m.unwrap_or(MAX_GAP_INFLUENCES * influence_m);
     let root_m = match config.root {
         Some(r) => [r.x, r.y, r.z],
@@ -243,6 +260,8 @@ fn derive(
         spacing_m,
         trunk_radius_m,
         trunk_radius_fitted: fitted,
+        trunk_coverage: fit.coverage,
+        one_sided,
         kill_distance_m,
         twig_kill_distance_m,
         step_m,
@@ -376,6 +395,7 @@ fn trunk_fit(pts: &[[f64; 3]], keep: Option<&[bool]>, spacing_m: f64) -> TrunkFi
             radius_m: c.radius_m,
             fitted: true,
             z_min,
+            coverage: c.coverage,
         };
     }
     // Fallback: the mean distance to the centroid (the radius for a full ring).
@@ -384,6 +404,7 @@ fn trunk_fit(pts: &[[f64; 3]], keep: Option<&[bool]>, spacing_m: f64) -> TrunkFi
         radius_m: spread.max(spacing_m),
         fitted: false,
         z_min,
+        coverage: 1.0,
     }
 }
 

@@ -9,6 +9,18 @@ use crate::error::{ColonizeError, Result};
 /// the trunk's own surface points from a node on its axis despite scan noise and a trunk
 /// that is not round.
 pub const KILL_PER_TRUNK_RADIUS: f64 = 1.2;
+/// Kill distance per trunk radius for a one-sided view ([`ONE_SIDED_COVERAGE`]): a node
+/// drawn to the points of a half-seen branch sits 2r/π in front of its axis, so the edges
+/// of the half ring are 1.19 r from it and escaped a 1.2 r kill distance, to grow a second
+/// chain up the branch beside the first (each then measured half as thick). 1.6 leaves a
+/// margin for noise. Measured on Kinect views of synthetic trees (`docs/validation.md`):
+/// 1.4 keeps some parallel chains, 1.8 gives the same as 1.6.
+pub const KILL_PER_TRUNK_RADIUS_ONE_SIDED: f64 = 1.6;
+/// The cloud is taken for a one-sided view when the circle fitted to the trunk's lowest
+/// slice covers less than this share of its 16 sectors (full scans 1.0; Kinect views of
+/// the coffee tree 0.50–0.69; the AdTree clouds, mobile and terrestrial scans from a few
+/// sides, 0.44–0.69).
+pub const ONE_SIDED_COVERAGE: f64 = 0.75;
 /// Kill distance in point spacings at least, so thin clouds still grow.
 pub const MIN_KILL_SPACINGS: f64 = 3.0;
 /// Segment length in point spacings (Runions et al. use a step well below the kill distance;
@@ -102,7 +114,7 @@ pub struct ColonizeConfig {
     pub trunk_radius_m: Option<f64>,
     /// Attraction points closer than this to a node are reached and removed, metres.
     /// Default: max([`KILL_PER_TRUNK_RADIUS`] × trunk radius, [`MIN_KILL_SPACINGS`] ×
-    /// spacing).
+    /// spacing), with [`KILL_PER_TRUNK_RADIUS_ONE_SIDED`] for a one-sided view.
     pub kill_distance_m: Option<f64>,
     /// Kill distance of the second pass, which grows the twigs the first pass (with its
     /// trunk-sized kill distance) never reached, from the whole first skeleton toward the
@@ -113,10 +125,11 @@ pub struct ColonizeConfig {
     /// most half its kill distance.
     pub twig_kill_distance_m: Option<f64>,
     /// Segment length, metres. Default: [`STEP_SPACINGS`] × spacing, at least
-    /// [`MIN_STEP_PER_KILL`] and at most half the kill distance.
+    /// [`MIN_STEP_PER_KILL`] and at most half the kill distance (a full scan's: 1.2 trunk
+    /// radii also for a one-sided view).
     pub step_m: Option<f64>,
     /// A node is attracted by points within this radius, metres. Default:
-    /// [`INFLUENCE_PER_KILL`] × kill distance.
+    /// [`INFLUENCE_PER_KILL`] × kill distance (a full scan's, as for the step).
     pub influence_m: Option<f64>,
     /// Longest straight bridge across a gap in the cloud, metres; points farther than this
     /// from the rest (as clusters) are outliers. Default: [`MAX_GAP_INFLUENCES`] × influence.
@@ -243,6 +256,12 @@ pub struct Parameters {
     pub trunk_radius_m: f64,
     /// True when the trunk radius came from a circle fit (false: given, or the fallback).
     pub trunk_radius_fitted: bool,
+    /// Share of the trunk circle the lowest slice's points cover (1 when not fitted).
+    pub trunk_coverage: f64,
+    /// Whether the cloud was taken for a one-sided view (a fitted trunk covered less than
+    /// [`ONE_SIDED_COVERAGE`]): the kill distance is then
+    /// [`KILL_PER_TRUNK_RADIUS_ONE_SIDED`] trunk radii.
+    pub one_sided: bool,
     /// Kill distance, metres.
     pub kill_distance_m: f64,
     /// Kill distance of the twig pass, metres.

@@ -60,7 +60,7 @@ pub const MIN_WIDTH_CELLS: f64 = 2.0;
 /// [`BELOW_BANDS`] bands.
 pub const MAX_BELOW_SHARE: f64 = 0.002;
 /// How far below the ground, in bands, a point counts as below it.
-const BELOW_BANDS: f64 = 3.0;
+pub const BELOW_BANDS: f64 = 3.0;
 /// Plane trials (three cells each), a fixed sequence: the result does not change from run
 /// to run.
 const TRIALS: usize = 300;

@@ -16,7 +16,8 @@
 //!   2. growth, by default [`Growth::Auto`]: space colonization, kept unless less than
 //!      [`AUTO_NEAR_SHARE`] of it lies within 2 cm of the points (a leafy crown it crosses
 //!      through the air), then geodesic level sets ([`Growth::LevelSets`]).
-//!      Space colonization with k-d trees (kiddo): kill distance ≈ 1.2 trunk radii, step
+//!      Space colonization with k-d trees (kiddo): kill distance ≈ 1.2 trunk radii (1.6
+//!      when the trunk's lowest slice shows a one-sided view, [`ONE_SIDED_COVERAGE`]), step
 //!      1.5 spacings, influence 2.75 kill distances; only points near new nodes are
 //!      revisited, so growth costs O(n log n); gaps (occlusions, one-sided views) are
 //!      crossed by the shortest straight bridge, never by growth toward nothing; a step
@@ -80,8 +81,9 @@ mod view;
 pub use cloud::{MAX_COORDINATE_M, MIN_POINTS};
 pub use config::{
     AUTO_NEAR_SHARE, ColonizeConfig, Growth, INFLUENCE_PER_KILL, KILL_PER_TRUNK_RADIUS,
-    LEVEL_BIN_SPACINGS, MAX_GAP_INFLUENCES, MAX_PATCH_M, MAX_TWIG_KILL_M, MIN_KILL_SPACINGS,
-    MIN_LEVEL_BIN_M, MIN_STEP_PER_KILL, PATCH_BINS, PIPE_EXPONENT, Parameters, STEP_SPACINGS,
+    KILL_PER_TRUNK_RADIUS_ONE_SIDED, LEVEL_BIN_SPACINGS, MAX_GAP_INFLUENCES, MAX_PATCH_M,
+    MAX_TWIG_KILL_M, MIN_KILL_SPACINGS, MIN_LEVEL_BIN_M, MIN_STEP_PER_KILL, ONE_SIDED_COVERAGE,
+    PATCH_BINS, PIPE_EXPONENT, Parameters, STEP_SPACINGS,
 };
 pub use error::{ColonizeError, Result};
 pub use reconstruct::{
@@ -95,8 +97,8 @@ pub use geometry::{
     tube_mesh,
 };
 pub use ground::{
-    DROP_SHARE, Ground, MAX_BELOW_SHARE, MAX_SLOPE_DEG, MAX_THICKNESS_M, MAX_TILT_DEG, MIN_FILL,
-    MIN_SURFACE_CELLS, MIN_WIDTH_CELLS,
+    BELOW_BANDS, DROP_SHARE, Ground, MAX_BELOW_SHARE, MAX_SLOPE_DEG, MAX_THICKNESS_M, MAX_TILT_DEG,
+    MIN_FILL, MIN_SURFACE_CELLS, MIN_WIDTH_CELLS,
 };
 pub use levels::{
     BRIDGE_COST, EDGE_SPACINGS, LEVEL_VOXEL_BINS, LINK_BINS, NEIGHBOURS, THIN_BELOW_VOXEL,
