@@ -110,9 +110,8 @@ pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result
         ));
     }
     check_thickness(points)?;
-    let pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
-    let tree = PointTree::new_from_slice(&pts);
-    let (mut pts, mut tree) = (pts, tree);
+    let mut pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let mut tree = PointTree::new_from_slice(&pts);
     let mut spacing_m = match config.spacing_m {
         Some(s) => s,
         None => median_spacing(&pts, &tree)?,

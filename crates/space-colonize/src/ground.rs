@@ -303,7 +303,18 @@ fn ground_at(pts: &[[f64; 3]], spacing_m: f64, cell_m: f64) -> Option<Ground> {
         }
         (weight > 0.0).then(|| p[2] - sum / weight)
     };
-    let heights: Vec<Option<f64>> = pts.iter().map(surface).collect();
+    // Points higher than any ground cell's level could reach are not looked at (the crown:
+    // most of a tree).
+    let top_m = ground
+        .iter()
+        .map(|c| filled[c].at[2])
+        .fold(f64::NEG_INFINITY, f64::max)
+        + (slope[0].hypot(slope[1]) + 1.0) * (REACH_CELLS + 1) as f64 * cell_m
+        + MAX_THICKNESS_M;
+    let heights: Vec<Option<f64>> = pts
+        .iter()
+        .map(|p| if p[2] > top_m { None } else { surface(p) })
+        .collect();
     let thickness_m = thickness(&heights, spacing_m, band_m);
     let indices: Vec<usize> = heights
         .iter()
@@ -401,7 +412,7 @@ const NEIGHBOURS: [(i64, i64); 8] = [
 
 /// Where the density of heights above the surface falls below [`DROP_SHARE`] of its peak
 /// (bins of half a spacing), one bin of margin, at least [`MIN_THICKNESS_SPACINGS`]
-/// spacings and at most [`MAX_THICKNESS_M`].
+/// spacings and at most [`MAX_THICKNESS_M`] (which wins where the two cross).
 fn thickness(heights: &[Option<f64>], spacing_m: f64, band_m: f64) -> f64 {
     let bin = (0.5 * spacing_m).max(1e-3);
     let bins = ((MAX_THICKNESS_M + band_m) / bin).ceil() as usize + 1;
@@ -422,7 +433,9 @@ fn thickness(heights: &[Option<f64>], spacing_m: f64, band_m: f64) -> f64 {
         .unwrap_or(bins);
     // Top edge of the last dense bin, plus one bin.
     let t = (end + 1) as f64 * bin - band_m;
-    t.clamp(MIN_THICKNESS_SPACINGS * spacing_m, MAX_THICKNESS_M)
+    // Not `clamp`: in a cloud sparser than 15 cm the floor is above the cap (the cap wins).
+    t.max(MIN_THICKNESS_SPACINGS * spacing_m)
+        .min(MAX_THICKNESS_M)
 }
 
 /// The largest 8-connected set of cells.

@@ -241,3 +241,23 @@ fn a_cloud_that_is_all_ground_is_named_and_can_be_kept() {
     };
     assert!(reconstruct(&points, &kept).is_ok());
 }
+
+#[test]
+fn a_sparse_cloud_with_a_ground_gives_a_model_or_a_typed_error() {
+    // Points 25 cm apart: the thinnest ground layer (2 spacings) is thicker than the
+    // thickest set aside (0.3 m); this once panicked in a clamp.
+    let mut points: Vec<_> = (0..1_600)
+        .map(|i| {
+            let (x, y) = (f64::from(i % 40) * 0.25, f64::from(i / 40) * 0.25);
+            Point3::new(x, y, 0.01 * ((3.0 * x).sin() + (5.0 * y).cos()))
+        })
+        .collect();
+    points.extend((1..40).map(|k| Point3::new(5.0, 5.0, 0.25 * f64::from(k))));
+    points.extend((1..20).map(|k| Point3::new(5.0 + 0.25 * f64::from(k), 5.0, 6.0)));
+    for spacing_m in [None, Some(0.5)] {
+        let config = ColonizeConfig { spacing_m, ..cfg() };
+        if let Err(e) = reconstruct(&points, &config) {
+            assert!(!e.to_string().is_empty());
+        }
+    }
+}
