@@ -9,6 +9,9 @@
 //! "bbox_min": [x,y,z], "bbox_max": [x,y,z]}` in metres, in the depth camera frame. Errors go
 //! to stderr with a non-zero exit. With no arguments it writes a small synthetic native
 //! recording under `target/treemocap-demo/capture_to_cloud/` and converts its first frame.
+//! The cloud stays in the depth camera's frame (y down): `reconstruct_tree CLOUD --up -y`
+//! grows a tree model from it (for a level camera; a capture's background is grown too,
+//! so crop the tree first).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -117,7 +120,12 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         bbox_max: [hi.x, hi.y, hi.z],
     };
     println!("{}", serde_json::to_string(&summary)?);
-    eprintln!("wrote {}", out.display());
+    eprintln!(
+        "wrote {} (the depth camera's frame: x right, y down, z forward; for a tree model \
+         of it, `reconstruct_tree {} --up -y`)",
+        out.display(),
+        out.display()
+    );
     Ok(())
 }
 

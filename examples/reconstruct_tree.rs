@@ -1,18 +1,23 @@
 //! A static tree model (skeleton, radii, mesh, cylinders) from a point cloud, with its fidelity.
 //!
 //! ```text
-//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth auto|colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv] [--keep-ground]
+//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth auto|colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv] [--keep-ground] [--up AXIS]
 //! ```
 //!
-//! `CLOUD`: XYZ text, PLY or PCD (kinect-io's readers), metres, Z up. Prints one JSON object:
+//! `CLOUD`: XYZ text, PLY or PCD (kinect-io's readers), metres, Z up; `--up AXIS` names
+//! another up (`-y` for a cloud in a level depth camera's frame, as `capture_to_cloud`
+//! writes it; `+y` for Y-up exports): the cloud is turned Z up for the reconstruction and
+//! every output (skeleton, mesh, cylinders, `"ground"`) is turned back into the cloud's
+//! frame, so it lies on the cloud. A cloud that looks like a camera's frame while Z is
+//! taken as up gets a warning on stderr and in `"warnings"`. Prints one JSON object:
 //! the metrics (`"mean_distance_m"`, `"median_distance_m"`, `"p95_distance_m"`,
 //! `"max_distance_m"`, `"within_1cm"`, `"within_2cm"`, `"within_5cm"` as shares of points,
 //! `"length_near_cloud"` as a share of model length, `"max_model_gap_m"`,
 //! `"branches_by_order"`), `"nodes"`, `"branches"`, `"total_length_m"`, `"volume_l"` and
 //! `"fidelity"` (issue 22's measure, the one the anchors AdTree and TreeQSM are compared by:
 //! `"mean_distance_m"`, `"within_2cm"`, `"model_near_cloud"`, `"axis_length_m"`),
-//! `"seconds"` (reconstruction time without file I/O or metrics), plus the `"parameters"` used
-//! and what `"growth"` did. Progress goes to stderr. A ground plane under the tree is set
+//! `"seconds"` (reconstruction time without file I/O or metrics), plus the `"parameters"` used,
+//! what `"growth"` did, the `"up"` axis used and any `"warnings"`. Progress goes to stderr. A ground plane under the tree is set
 //! aside before growth (`--keep-ground` keeps it) and reported as `"ground"` (the plane it
 //! was seeded from, `normal`·p = `offset_m`; `thickness_m`, `points`, `cells`, `cell_m`),
 //! with `"fidelity_above_ground"`.
@@ -35,8 +40,9 @@ use treemocap::nalgebra::Point3;
 use treemocap::space_colonize::synthetic::{SkeletonError, SyntheticConfig, skeleton_error};
 use treemocap::space_colonize::{
     AUTO_NEAR_SHARE, ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, Ground, Growth, GrowthReport,
-    KINECT_DEPTH_NOISE_M, Metrics, Parameters, Reconstruction, Stage, ViewConfig, camera_view,
-    cylinders, cylinders_to_csv, fidelity, metrics, reconstruct_with_progress, tube_mesh,
+    KINECT_DEPTH_NOISE_M, Metrics, Parameters, Reconstruction, Skeleton, Stage, UpAxis, ViewConfig,
+    camera_view, cylinders, cylinders_to_csv, fidelity, looks_like_camera_frame, metrics,
+    reconstruct_with_progress, tube_mesh,
 };
 
 mod common;
@@ -80,6 +86,16 @@ struct Args {
     /// default they are set aside and reported as `"ground"`)
     #[arg(long = "keep-ground")]
     keep_ground: bool,
+    /// The cloud's up axis: `z` (the default: the tree frame), `-y` (a level depth
+    /// camera's own frame, y down, as `capture_to_cloud` writes it), `y` (Y-up exports),
+    /// `x`, `-x` or `-z`. The outputs are turned back into the cloud's frame
+    #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
+    up: Option<UpAxis>,
+}
+
+/// An up axis by name.
+fn up_axis(text: &str) -> Result<UpAxis, String> {
+    text.parse().map_err(|e| format!("{e}"))
 }
 
 /// A point as X,Y,Z.
@@ -141,6 +157,11 @@ struct Report {
     truth: Option<SkeletonError>,
     #[serde(skip_serializing_if = "Option::is_none")]
     view: Option<ViewReport>,
+    /// The cloud's up axis the reconstruction used (`--up`; `+z` by default).
+    up: UpAxis,
+    /// What the user should know before trusting the model.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    warnings: Vec<String>,
 }
 
 /// The model of a one-sided view against the whole cloud.
@@ -209,21 +230,24 @@ fn run(
     Ok((model, seconds))
 }
 
+/// The report of `model`, whose skeleton turned back into the cloud's frame is `skeleton`,
+/// measured against `points` (the cloud's frame).
 fn report(
     cloud: String,
     points: &[Point3<f64>],
     model: &Reconstruction,
+    skeleton: &Skeleton,
     seconds: f64,
     truth: Option<SkeletonError>,
 ) -> Report {
     Report {
         cloud,
-        nodes: model.skeleton.nodes().len(),
+        nodes: skeleton.nodes().len(),
         branches: model.branches.len(),
-        cylinders: cylinders(&model.skeleton).len(),
+        cylinders: cylinders(skeleton).len(),
         branches_by_order: model.branches_by_order(),
-        metrics: metrics(points, &model.skeleton),
-        fidelity: fidelity(points, &model.skeleton),
+        metrics: metrics(points, skeleton),
+        fidelity: fidelity(points, skeleton),
         seconds,
         parameters: model.parameters,
         growth: model.growth,
@@ -239,10 +263,12 @@ fn report(
                 .filter(|(_, g)| !**g)
                 .map(|(p, _)| *p)
                 .collect();
-            fidelity(&above, &model.skeleton)
+            fidelity(&above, skeleton)
         }),
         truth,
         view: None,
+        up: UpAxis::PlusZ,
+        warnings: Vec::new(),
     }
 }
 
@@ -259,6 +285,9 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             (path.display().to_string(), points, None)
         }
         None => {
+            if args.up.is_some() {
+                return Err("--up applies to a CLOUD; the synthetic tree is Z up".into());
+            }
             let config = SyntheticConfig::default();
             eprintln!(
                 "no cloud given: a synthetic tree ({} m, base radius {} m, orders up to {}, about {} points, {} mm noise)",
@@ -272,47 +301,71 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             ("synthetic".to_string(), tree.points, Some(tree.skeleton))
         }
     };
+    let up = args.up.unwrap_or_default();
+    let mut warnings = Vec::new();
+    if args.up.is_none() && looks_like_camera_frame(&points) {
+        let w = format!(
+            "{name} looks like a cloud in a depth camera's own frame (x right, y down, z \
+             forward: every point in front of the origin along +z, inside a camera's field of \
+             view), but is read Z up: the model grows from the front of the tree along the \
+             view and cannot be trusted. For a level camera pass --up -y (or write the cloud in \
+             a Z-up world frame, kinect_io::camera_to_world_z_up); --up z keeps Z up and \
+             silences this"
+        );
+        eprintln!("warning: {w}");
+        warnings.push(w);
+    }
+    // The reconstruction works Z up; the outputs are turned back into the cloud's frame.
     let whole = points;
-    let points = match args.view_from {
+    let whole_z_up: Vec<Point3<f64>> = whole.iter().map(|p| up.to_z_up(p)).collect();
+    let (points, points_z_up) = match args.view_from {
         Some(camera_m) => {
             let view = ViewConfig {
                 depth_noise_m: args.depth_noise_m,
-                ..ViewConfig::kinect(camera_m)
+                ..ViewConfig::kinect(up.to_z_up(&camera_m))
             };
-            let seen = camera_view(&whole, &view)?;
+            let seen = camera_view(&whole_z_up, &view)?;
             eprintln!(
                 "a Kinect v2 at {camera_m:?} sees {} of the {} points",
                 seen.len(),
                 whole.len()
             );
-            seen
+            (seen.iter().map(|p| up.from_z_up(p)).collect(), seen)
         }
-        None => whole.clone(),
+        None => (whole.clone(), whole_z_up),
     };
     let (model, seconds) =
-        run(&points, args.growth, args.keep_ground).map_err(|e| format!("{name}: {e}"))?;
-    let error = truth.as_ref().map(|t| skeleton_error(&model.skeleton, t));
+        run(&points_z_up, args.growth, args.keep_ground).map_err(|e| format!("{name}: {e}"))?;
+    let skeleton = up.skeleton_from_z_up(&model.skeleton)?;
+    let error = truth.as_ref().map(|t| skeleton_error(&skeleton, t));
     if let Some(p) = &args.skeleton {
-        model.skeleton.write_json(p)?;
+        skeleton.write_json(p)?;
         eprintln!("wrote {}", p.display());
     }
     if let Some(p) = &args.mesh {
-        tube_mesh(&model.skeleton, DEFAULT_MESH_SIDES)?.write(p)?;
+        tube_mesh(&skeleton, DEFAULT_MESH_SIDES)?.write(p)?;
         eprintln!("wrote {}", p.display());
     }
     if let Some(p) = &args.cylinders {
-        std::fs::write(p, cylinders_to_csv(&cylinders(&model.skeleton)))
+        std::fs::write(p, cylinders_to_csv(&cylinders(&skeleton)))
             .map_err(|e| format!("{}: {e}", p.display()))?;
         eprintln!("wrote {}", p.display());
     }
-    let mut r = report(name, &points, &model, seconds, error);
+    let mut r = report(name, &points, &model, &skeleton, seconds, error);
+    if let Some(g) = &mut r.ground {
+        // A rotation keeps the plane's offset along its (turned) normal.
+        let n = up.from_z_up(&Point3::from(g.normal));
+        g.normal = [n.x, n.y, n.z];
+    }
+    r.up = up;
+    r.warnings = warnings;
     r.view = args.view_from.map(|c| ViewReport {
         camera_m: [c.x, c.y, c.z],
         depth_noise_m: args.depth_noise_m,
         points_seen: points.len(),
         points_in_cloud: whole.len(),
-        fidelity_to_whole_cloud: fidelity(&whole, &model.skeleton),
-        metrics_to_whole_cloud: metrics(&whole, &model.skeleton),
+        fidelity_to_whole_cloud: fidelity(&whole, &skeleton),
+        metrics_to_whole_cloud: metrics(&whole, &skeleton),
     });
     println!("{}", serde_json::to_string_pretty(&r)?);
     Ok(())

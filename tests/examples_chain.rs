@@ -124,3 +124,75 @@ fn every_program_knows_version_and_exits_2_on_a_usage_error() {
         );
     }
 }
+
+#[test]
+fn reconstruct_tree_flags_a_cloud_in_a_cameras_frame_and_turns_it_with_up() {
+    use treemocap::nalgebra::Vector3;
+    use treemocap::space_colonize::UpAxis;
+    use treemocap::space_colonize::synthetic::SyntheticConfig;
+    let Some(program) = program("reconstruct_tree") else {
+        eprintln!("skipped: the example programs are not built (run `cargo test --workspace`)");
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("treemocap-up-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    // A tree 3 m in front of a level camera 1.2 m above its base, in the camera's frame
+    // (x right, y down, z forward), as capture_to_cloud writes a capture.
+    let tree = SyntheticConfig {
+        points: 4_000,
+        max_order: 2,
+        seed: 9,
+        ..Default::default()
+    }
+    .generate()
+    .unwrap();
+    let camera = Vector3::new(0.0, -3.0, 1.2);
+    let text: String = tree
+        .points
+        .iter()
+        .map(|p| {
+            let c = UpAxis::MinusY.from_z_up(&(p - camera));
+            format!("{} {} {}\n", c.x, c.y, c.z)
+        })
+        .collect();
+    let cloud = dir.join("capture.xyz");
+    std::fs::write(&cloud, text).unwrap();
+    let skeleton = dir.join("skeleton.json");
+    let json = |args: &[&str]| -> serde_json::Value {
+        let out = Command::new(&program).args(args).output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let cloud_arg = cloud.to_str().unwrap();
+    let read_z_up = json(&[cloud_arg]);
+    assert_eq!(read_z_up["up"], "+z");
+    assert!(
+        read_z_up["warnings"][0]
+            .as_str()
+            .is_some_and(|w| w.contains("--up -y")),
+        "{read_z_up}"
+    );
+    let turned = json(&[
+        cloud_arg,
+        "--up",
+        "-y",
+        "--out-skeleton",
+        skeleton.to_str().unwrap(),
+    ]);
+    assert_eq!(turned["up"], "-y");
+    assert!(turned.get("warnings").is_none(), "{turned}");
+    assert!(turned["fidelity"]["within_2cm"].as_f64().unwrap() > 0.95);
+    // The skeleton is written in the cloud's frame: its root at the trunk's base, 1.2 m
+    // below the camera (+y) and 3 m in front of it.
+    let nodes: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&skeleton).unwrap()).unwrap();
+    let root = &nodes["nodes"][0]["position"];
+    let (y, z) = (root[1].as_f64().unwrap(), root[2].as_f64().unwrap());
+    assert!((y - 1.2).abs() < 0.1 && (z - 3.0).abs() < 0.2, "{root}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

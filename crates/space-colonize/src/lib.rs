@@ -46,6 +46,11 @@
 //!   branch, noise along the rays), to judge a reconstruction from a one-sided view
 //!   against the full cloud.
 //!
+//! - [`UpAxis`] turns a cloud whose up is another axis (a depth camera's frame: y down;
+//!   Y-up exports) into the tree frame and the model back;
+//!   [`Reconstruction::camera_frame_suspected`] flags a cloud that still looks like a
+//!   camera's frame ([`looks_like_camera_frame`]).
+//!
 //! Units: metres; the tree frame is right-handed with Z up. Nothing here panics on input:
 //! bad clouds and parameters are [`ColonizeError`]s.
 //!
@@ -67,6 +72,7 @@ mod cloud;
 mod config;
 mod error;
 mod fidelity;
+mod frame;
 mod geometry;
 mod ground;
 mod grow;
@@ -92,6 +98,10 @@ pub use reconstruct::{
 pub use skeleton::{Branch, MAX_INSIDE_RADII, Skeleton, SkeletonNode, skeleton_nodes_from_json};
 
 pub use fidelity::{CANDIDATE_EDGES, Fidelity, MODEL_SAMPLE_M, fidelity};
+pub use frame::{
+    CAMERA_FRUSTUM_SHARE, CAMERA_MAX_DEPTH_M, CAMERA_MAX_TAN, CAMERA_MIN_DEPTH_M, UpAxis,
+    looks_like_camera_frame,
+};
 pub use geometry::{
     Cylinder, DEFAULT_MESH_SIDES, MAX_MESH_SIDES, TriangleMesh, cylinders, cylinders_to_csv,
     tube_mesh,

@@ -96,6 +96,11 @@ pub struct Reconstruction {
     /// The ground plane found under the tree and set aside before growth
     /// ([`ColonizeConfig::remove_ground`]); `None` when there was none (or not asked for).
     pub ground: Option<Ground>,
+    /// The cloud looked like a depth camera's own frame (y down, z forward), not Z up
+    /// ([`crate::looks_like_camera_frame`]): the model was grown from the front of the tree
+    /// upward along the view and cannot be trusted. Turn the cloud first
+    /// ([`crate::UpAxis::MinusY`] for a level camera).
+    pub camera_frame_suspected: bool,
 }
 
 impl Reconstruction {
@@ -327,6 +332,7 @@ pub fn reconstruct_with_progress(
         branches,
         parameters: p,
         ground: prep.ground.clone(),
+        camera_frame_suspected: crate::frame::looks_like_camera_frame(points),
     })
 }
 

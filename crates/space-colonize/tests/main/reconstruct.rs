@@ -578,3 +578,74 @@ fn no_ground_is_found_under_trees_cut_out_of_their_scene() {
         }
     }
 }
+
+#[test]
+fn a_cloud_in_a_cameras_frame_is_flagged_and_can_be_turned_z_up() {
+    use space_colonize::{Skeleton, SkeletonNode, UpAxis};
+    let truth = small(5).generate().unwrap();
+    assert!(
+        !reconstruct(&truth.points, &ColonizeConfig::default())
+            .unwrap()
+            .camera_frame_suspected
+    );
+    // The tree 3 m in front of a level camera 1.2 m above its base, in the camera's frame
+    // (x right, y down, z forward), as kinect-io writes a capture.
+    let camera = Vector3::new(0.0, -3.0, 1.2);
+    let up = UpAxis::MinusY;
+    let in_camera: Vec<Point3<f64>> = truth
+        .points
+        .iter()
+        .map(|p| up.from_z_up(&(p - camera)))
+        .collect();
+    let read_z_up = reconstruct(&in_camera, &ColonizeConfig::default()).unwrap();
+    assert!(read_z_up.camera_frame_suspected);
+    // Turned Z up, it is the tree again, not flagged, and its model turned back lies on the
+    // camera-frame cloud exactly as the Z-up model lies on the turned cloud.
+    let turned: Vec<Point3<f64>> = in_camera.iter().map(|p| up.to_z_up(p)).collect();
+    let model = reconstruct(&turned, &ColonizeConfig::default()).unwrap();
+    assert!(!model.camera_frame_suspected);
+    let shifted = Skeleton::new(
+        truth
+            .skeleton
+            .nodes()
+            .iter()
+            .map(|n| SkeletonNode {
+                position: n.position - camera,
+                ..*n
+            })
+            .collect(),
+    )
+    .unwrap();
+    let e = skeleton_error(&model.skeleton, &shifted);
+    assert!(e.mean_skeleton_error_m < 0.012, "{e:?}");
+    assert!(e.truth_length_found > 0.97, "{e:?}");
+    let back = up.skeleton_from_z_up(&model.skeleton).unwrap();
+    let (m_back, m_z_up) = (
+        metrics(&in_camera, &back),
+        metrics(&turned, &model.skeleton),
+    );
+    assert!(
+        (m_back.mean_distance_m - m_z_up.mean_distance_m).abs() < 1e-9,
+        "{m_back:?} {m_z_up:?}"
+    );
+    // Read as Z up, the camera-frame cloud gives a model that is not the tree.
+    let wrong_in_tree_frame = Skeleton::new(
+        read_z_up
+            .skeleton
+            .nodes()
+            .iter()
+            .map(|n| SkeletonNode {
+                position: up.to_z_up(&n.position),
+                ..*n
+            })
+            .collect(),
+    )
+    .unwrap();
+    let e_wrong = skeleton_error(&wrong_in_tree_frame, &shifted);
+    // (seed 5: 30 mm and 4.6 times the length, against 3.9 mm and 1.14 turned)
+    assert!(
+        e_wrong.mean_skeleton_error_m > 3.0 * e.mean_skeleton_error_m
+            && e_wrong.length_ratio > 2.0 * e.length_ratio,
+        "{e_wrong:?} {e:?}"
+    );
+}
