@@ -1,7 +1,7 @@
 //! A static tree model (skeleton, radii, mesh, cylinders) from a point cloud, with its fidelity.
 //!
 //! ```text
-//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth auto|colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv] [--keep-ground] [--up AXIS]
+//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth auto|colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv] [--keep-ground] [--up AXIS] [--view-from X,Y,Z] [--camera-at X,Y,Z]
 //! ```
 //!
 //! `CLOUD`: XYZ text, PLY or PCD (kinect-io's readers), metres, Z up; `--up AXIS` names
@@ -24,8 +24,10 @@
 //!
 //! With `--view-from X,Y,Z` the cloud is first reduced to what a Kinect v2 there would see
 //! (`space_colonize::camera_view`: the near half of each branch, `--depth-noise-m` along the
-//! rays), and `"view"` measures the model against the whole cloud
-//! (`"fidelity_to_whole_cloud"`, `"metrics_to_whole_cloud"`).
+//! rays), reconstructed with that camera known, and `"view"` measures the model against the
+//! whole cloud (`"fidelity_to_whole_cloud"`, `"metrics_to_whole_cloud"`). `--camera-at
+//! X,Y,Z` gives the camera of a one-sided cloud (`ColonizeConfig::camera_m`: thin branches
+//! are measured across its rays, where depth noise does not widen them).
 //!
 //! With no arguments it reconstructs a synthetic tree sampled from a known skeleton and adds
 //! `"truth"`: the error against that skeleton.
@@ -91,6 +93,12 @@ struct Args {
     /// `x`, `-x` or `-z`. The outputs are turned back into the cloud's frame
     #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
     up: Option<UpAxis>,
+    /// Where the cloud was seen from, for a one-sided view (a depth camera's position,
+    /// metres, the cloud's frame: 0,0,0 for a cloud in the camera's own frame): branches
+    /// under 1.5 cm are then measured across its rays too, where depth noise does not
+    /// widen them. `--view-from` sets it to the view's camera
+    #[arg(long = "camera-at", value_name = "X,Y,Z", value_parser = point3, allow_hyphen_values = true)]
+    camera_at: Option<Point3<f64>>,
 }
 
 /// An up axis by name.
@@ -179,6 +187,7 @@ fn run(
     points: &[Point3<f64>],
     growth: Growth,
     keep_ground: bool,
+    camera_m: Option<Point3<f64>>,
 ) -> Result<(Reconstruction, f64), Box<dyn std::error::Error>> {
     let t = Instant::now();
     let mut progress = |s: Stage| {
@@ -197,6 +206,7 @@ fn run(
     let config = ColonizeConfig {
         growth,
         remove_ground: !keep_ground,
+        camera_m,
         ..ColonizeConfig::default()
     };
     let model = reconstruct_with_progress(points, &config, &mut progress)?;
@@ -334,8 +344,9 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         }
         None => (whole.clone(), whole_z_up),
     };
-    let (model, seconds) =
-        run(&points_z_up, args.growth, args.keep_ground).map_err(|e| format!("{name}: {e}"))?;
+    let camera_m = args.view_from.or(args.camera_at).map(|c| up.to_z_up(&c));
+    let (model, seconds) = run(&points_z_up, args.growth, args.keep_ground, camera_m)
+        .map_err(|e| format!("{name}: {e}"))?;
     let skeleton = up.skeleton_from_z_up(&model.skeleton)?;
     let error = truth.as_ref().map(|t| skeleton_error(&skeleton, t));
     if let Some(p) = &args.skeleton {
@@ -357,6 +368,10 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         let n = up.from_z_up(&Point3::from(g.normal));
         g.normal = [n.x, n.y, n.z];
     }
+    // The parameters' places in the cloud's frame too.
+    let back = |p: [f64; 3]| -> [f64; 3] { up.from_z_up(&Point3::from(p)).coords.into() };
+    r.parameters.camera_m = r.parameters.camera_m.map(back);
+    r.parameters.root_m = back(r.parameters.root_m);
     r.up = up;
     r.warnings = warnings;
     r.view = args.view_from.map(|c| ViewReport {

@@ -267,6 +267,7 @@ fn derive(
         influence_m,
         max_gap_m,
         root_m,
+        camera_m: config.camera_m.map(|c| [c.x, c.y, c.z]),
         pipe_exponent: config.pipe_exponent,
         min_twig_m: config.min_twig_m.unwrap_or(2.0 * spacing_m),
         max_iterations: config.max_iterations.unwrap_or(2 * n + 10_000),

@@ -7,7 +7,7 @@ use nalgebra::{Point3, Vector3};
 
 use crate::circle::{centre_with_radius, fit_circle};
 use crate::cloud::PointTree;
-use crate::config::Parameters;
+use crate::config::{ACROSS_RAY_MAX_RADIUS_M, ACROSS_RAY_RANGE_PER_RADIUS, Parameters};
 use crate::error::Result;
 use crate::skeleton::{Skeleton, SkeletonNode};
 
@@ -269,14 +269,30 @@ impl Graph {
                 if children[i].len() > 1 {
                     return None;
                 }
-                self.cross_section(i, &a, &children, pts, &mut plane)?;
-                let c = fit_circle(&plane).filter(|c| usable(c, p))?;
-                (c.points >= RELIABLE_FIT_POINTS
-                    && c.coverage >= RELIABLE_FIT_COVERAGE
-                    && c.rms_m < RELIABLE_FIT_RMS_PER_RADIUS * c.radius_m
-                    && c.radius_m >= RELIABLE_FIT_SPACINGS * p.spacing_m
-                    && c.centre[0].hypot(c.centre[1]) < 0.5 * c.radius_m)
-                    .then_some(c.radius_m)
+                let (u, v) = self.cross_section(i, &a, &children, pts, &mut plane)?;
+                let fit = fit_circle(&plane).filter(|c| usable(c, p)).filter(|c| {
+                    c.points >= RELIABLE_FIT_POINTS
+                        && c.coverage >= RELIABLE_FIT_COVERAGE
+                        && c.rms_m < RELIABLE_FIT_RMS_PER_RADIUS * c.radius_m
+                        && c.radius_m >= RELIABLE_FIT_SPACINGS * p.spacing_m
+                        && c.centre[0].hypot(c.centre[1]) < 0.5 * c.radius_m
+                });
+                // With the camera known, a thin branch is also measured across the view
+                // ray, where depth noise does not widen it as it widens the circle fit.
+                let across = p
+                    .camera_m
+                    .filter(|_| fit.is_some_and(|c| c.radius_m < ACROSS_RAY_MAX_RADIUS_M))
+                    .and_then(|camera| {
+                        across_ray_radius(
+                            &plane,
+                            self.pos[i],
+                            u.cross(&v),
+                            (u, v),
+                            camera,
+                            p.spacing_m,
+                        )
+                    });
+                fit.map(|c| across.map_or(c.radius_m, |r| c.radius_m.min(r)))
             })
             .collect();
         self.taper_fit(&raw, &children)
@@ -488,6 +504,47 @@ fn near_fork(i: usize, parent: &[Option<usize>], children: &[Vec<usize>]) -> boo
     children[i].len() > 1
         || parent[i].is_some_and(|p| children[p].len() > 1)
         || children[i].iter().any(|&c| children[c].len() > 1)
+}
+
+/// The radius of a branch from its cross-section's spread across the view ray from
+/// `camera` (perpendicular to the ray and to the branch direction `t`; `plane` holds the
+/// points in the basis `uv` at `node`): the central 90 % span over
+/// [`ACROSS_RAY_RANGE_PER_RADIUS`]. Depth noise lies along the ray and does not widen it.
+/// `None` with fewer than [`MIN_FIT_POINTS`] points, a ray along the branch, or no spread.
+fn across_ray_radius(
+    plane: &[[f64; 2]],
+    node: Vector3<f64>,
+    t: Vector3<f64>,
+    (u, v): (Vector3<f64>, Vector3<f64>),
+    camera: [f64; 3],
+    spacing_m: f64,
+) -> Option<f64> {
+    if plane.len() < MIN_FIT_POINTS {
+        return None;
+    }
+    let ray = node - Vector3::from(camera);
+    let across = t.cross(&(ray - t * ray.dot(&t))).try_normalize(1e-9)?;
+    let (au, av) = (across.dot(&u), across.dot(&v));
+    let mut lateral: Vec<f64> = plane.iter().map(|q| q[0] * au + q[1] * av).collect();
+    lateral.sort_by(f64::total_cmp);
+    let last = (lateral.len() - 1) as f64;
+    let at = |share: f64| lateral[((share * last).round() as usize).min(lateral.len() - 1)];
+    // A camera samples a branch in columns of pixels, whose points share their lateral
+    // position: the outermost columns' centres lie half a column inside the branch's edges,
+    // so one column's step is added back. Laser points kept by a view are scattered across
+    // instead (few neighbours at one lateral position) and need nothing added.
+    let gaps: Vec<f64> = lateral.windows(2).map(|w| w[1] - w[0]).collect();
+    let tiny = 0.05 * spacing_m;
+    let shared = gaps.iter().filter(|&&g| g <= tiny).count();
+    let step = if 2 * shared > gaps.len() {
+        let mut wide: Vec<f64> = gaps.into_iter().filter(|&g| g > tiny).collect();
+        wide.sort_by(f64::total_cmp);
+        wide.get(wide.len() / 2).copied().unwrap_or(0.0)
+    } else {
+        0.0
+    };
+    let r = (at(0.95) - at(0.05) + step) / ACROSS_RAY_RANGE_PER_RADIUS;
+    (r > 0.0).then_some(r)
 }
 
 /// A circle that may move a node.

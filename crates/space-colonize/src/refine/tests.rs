@@ -96,3 +96,57 @@ fn a_stub_is_kept_only_when_a_point_needs_it() {
     let remove = unneeded_stubs(&far, &[false], &sk, &stubs, &[off_trunk(0.3)], 0.02);
     assert_eq!(remove, vec![true]);
 }
+
+/// A half ring of radius `r` facing a camera far along -x (rays along +x), as a view's
+/// cross-section across a branch up z: `lateral` positions (y) with `depth_noise_m` along
+/// the ray, in the node's plane basis (u = x, v = y).
+fn half_ring(r: f64, lateral: &[f64], depth_noise_m: f64, seed: u64) -> Vec<[f64; 2]> {
+    let mut state = seed;
+    let mut normal = move || {
+        let mut s = 0.0;
+        for _ in 0..12 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            s += (state >> 11) as f64 / (1u64 << 53) as f64;
+        }
+        s - 6.0
+    };
+    lateral
+        .iter()
+        .map(|&y| {
+            [
+                -(r * r - y * y).max(0.0).sqrt() + depth_noise_m * normal(),
+                y,
+            ]
+        })
+        .collect()
+}
+
+#[test]
+fn depth_noise_widens_a_thin_branchs_circle_but_not_its_width_across_the_ray() {
+    let r = 0.006;
+    // A laser scan's points kept by the view: spread evenly around the near half.
+    let lateral: Vec<f64> = (0..60)
+        .map(|k| r * (std::f64::consts::PI * (f64::from(k) + 0.5) / 60.0).cos())
+        .collect();
+    let plane = half_ring(r, &lateral, 0.006, 3);
+    let fit = crate::circle::fit_circle(&plane).unwrap();
+    assert!(fit.radius_m > 1.1 * r, "{fit:?}");
+    let (u, v) = (Vector3::x(), Vector3::y());
+    let camera = [-3.0, 0.0, 0.0];
+    let across =
+        across_ray_radius(&plane, Vector3::zeros(), u.cross(&v), (u, v), camera, 0.004).unwrap();
+    assert!((across / r - 1.0).abs() < 0.08, "{across}");
+    // A camera's pixels: columns 6 mm apart (a Kinect v2 at 2.5 m), three rows each, on a
+    // 6 mm branch: two columns, whose centres span half the width.
+    let columns: Vec<f64> = [-0.003, 0.003].iter().flat_map(|&y| [y, y, y]).collect();
+    let plane = half_ring(r, &columns, 0.006, 5);
+    let across =
+        across_ray_radius(&plane, Vector3::zeros(), u.cross(&v), (u, v), camera, 0.006).unwrap();
+    assert!((across / r - 1.0).abs() < 0.1, "{across}");
+    // A ray along the branch has no across.
+    assert!(
+        across_ray_radius(&plane, Vector3::zeros(), u, (v, u.cross(&v)), camera, 0.006).is_none()
+    );
+}

@@ -115,6 +115,24 @@ fn parameters_that_cannot_work() {
             ..
         }
     ));
+    let err = reconstruct(
+        &pts,
+        &ColonizeConfig {
+            camera_m: Some(Point3::new(1.0, f64::INFINITY, 0.0)),
+            ..cfg()
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ColonizeError::InvalidParameter {
+                name: "camera_m",
+                ..
+            }
+        ),
+        "{err}"
+    );
 }
 
 proptest! {
