@@ -148,7 +148,9 @@ pub struct ColonizeConfig {
     /// Root of the tree. Default: the lowest points, at the centre of the fitted trunk circle.
     pub root: Option<Point3<f64>>,
     /// Where the cloud was seen from, for a one-sided view (a depth camera's position in the
-    /// cloud's frame, known in a capture). Radii under [`ACROSS_RAY_MAX_RADIUS_M`] are then
+    /// cloud's frame, known in a capture). The cloud is then taken for a one-sided view
+    /// whatever its trunk slice covers ([`Parameters::one_sided`]), and radii under
+    /// [`ACROSS_RAY_MAX_RADIUS_M`] are
     /// measured across the view ray too, where depth noise does not widen a branch, and the
     /// smaller of that and the circle fit is kept. Default `None`: circle fits only.
     pub camera_m: Option<Point3<f64>>,
@@ -284,7 +286,8 @@ pub struct Parameters {
     /// Share of the trunk circle the lowest slice's points cover (1 when not fitted).
     pub trunk_coverage: f64,
     /// Whether the cloud was taken for a one-sided view (a fitted trunk covered less than
-    /// [`ONE_SIDED_COVERAGE`]): the kill distance is then
+    /// [`ONE_SIDED_COVERAGE`], or the camera was given, [`ColonizeConfig::camera_m`]): the
+    /// kill distance is then
     /// [`KILL_PER_TRUNK_RADIUS_ONE_SIDED`] trunk radii.
     pub one_sided: bool,
     /// Kill distance, metres.

@@ -649,3 +649,26 @@ fn a_cloud_in_a_cameras_frame_is_flagged_and_can_be_turned_z_up() {
         "{e_wrong:?} {e:?}"
     );
 }
+
+#[test]
+fn a_known_camera_makes_the_cloud_a_one_sided_view() {
+    let truth = small(3).generate().unwrap();
+    let full = reconstruct(&truth.points, &ColonizeConfig::default()).unwrap();
+    assert!(!full.parameters.one_sided, "{:?}", full.parameters);
+    let seen = reconstruct(
+        &truth.points,
+        &ColonizeConfig {
+            camera_m: Some(Point3::new(3.0, 0.0, 1.0)),
+            ..ColonizeConfig::default()
+        },
+    )
+    .unwrap();
+    let p = seen.parameters;
+    assert!(p.one_sided, "{p:?}");
+    assert_eq!(p.camera_m, Some([3.0, 0.0, 1.0]));
+    approx::assert_relative_eq!(
+        p.kill_distance_m,
+        space_colonize::KILL_PER_TRUNK_RADIUS_ONE_SIDED * p.trunk_radius_m,
+        max_relative = 1e-12
+    );
+}
