@@ -93,7 +93,8 @@ pub use config::{
 };
 pub use error::{ColonizeError, Result};
 pub use reconstruct::{
-    FAR_TIP_SPACINGS, GrowthReport, Reconstruction, Stage, reconstruct, reconstruct_with_progress,
+    FAR_TIP_SPACINGS, GrowthReport, NOISY_SCAN_M, NOISY_VIEW_M, Reconstruction, Stage, reconstruct,
+    reconstruct_with_progress,
 };
 pub use skeleton::{Branch, MAX_INSIDE_RADII, Skeleton, SkeletonNode, skeleton_nodes_from_json};
 
@@ -113,7 +114,7 @@ pub use ground::{
 pub use levels::{
     BRIDGE_COST, EDGE_SPACINGS, LEVEL_VOXEL_BINS, LINK_BINS, NEIGHBOURS, THIN_BELOW_VOXEL,
 };
-pub use metrics::{Metrics, NEAR_CLOUD_M, metrics};
+pub use metrics::{Metrics, NEAR_CLOUD_M, NOISE_BRANCH_RADIUS_M, metrics};
 pub use view::{KINECT_DEPTH_NOISE_M, KINECT_V2_PIXEL_RAD, MIN_PIXEL_RAD, ViewConfig, camera_view};
 
 /// The types most programs need.

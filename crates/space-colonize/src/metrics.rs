@@ -132,6 +132,57 @@ fn distances(points: impl Iterator<Item = Vector3<f64>>, cyls: &[Cyl]) -> Vec<f6
         .collect()
 }
 
+/// Branches at least this thick measure the scan's noise: their surface is smooth on the
+/// scale of millimetres, so the points' spread about it is noise (bark and fit error
+/// included), metres.
+pub const NOISE_BRANCH_RADIUS_M: f64 = 0.02;
+/// Points measured at most for the noise (evenly strided through the cloud).
+const NOISE_SAMPLE: usize = 50_000;
+/// Fewest points on such branches for an estimate.
+const NOISE_MIN_POINTS: usize = 100;
+
+/// The scan's noise about the model's surface, metres: the robust spread (1.4826 times the
+/// median absolute deviation) of the signed distances of points to the lateral surface of
+/// the nearest cylinder at least [`NOISE_BRANCH_RADIUS_M`] thick, for points lying along it
+/// (not beyond its ends). `None` with fewer than 100 such points.
+pub(crate) fn surface_noise(pts: &[[f64; 3]], skeleton: &Skeleton) -> Option<f64> {
+    let cyls = cylinders(skeleton);
+    if cyls.is_empty() {
+        return None;
+    }
+    let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&midpoints(&cyls));
+    let k = std::num::NonZeroUsize::new(CANDIDATE_CYLINDERS.min(cyls.len()))
+        .unwrap_or(std::num::NonZeroUsize::MIN);
+    let stride = pts.len().div_ceil(NOISE_SAMPLE).max(1);
+    let mut signed: Vec<f64> = pts
+        .iter()
+        .step_by(stride)
+        .filter_map(|p| {
+            let q = Vector3::from(*p);
+            let nearest = tree
+                .nearest_n::<SquaredEuclidean>(p, k)
+                .iter()
+                .map(|nb| &cyls[nb.item as usize])
+                .min_by(|a, b| {
+                    surface_distance(&q, &a.a, &a.u, a.len, a.r)
+                        .total_cmp(&surface_distance(&q, &b.a, &b.u, b.len, b.r))
+                })?;
+            let v = q - nearest.a;
+            let t = v.dot(&nearest.u);
+            (nearest.r >= NOISE_BRANCH_RADIUS_M && (0.0..=nearest.len).contains(&t))
+                .then(|| (v - nearest.u * t).norm() - nearest.r)
+        })
+        .collect();
+    if signed.len() < NOISE_MIN_POINTS {
+        return None;
+    }
+    signed.sort_by(f64::total_cmp);
+    let median = signed[signed.len() / 2];
+    let mut dev: Vec<f64> = signed.iter().map(|d| (d - median).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    Some(1.4826 * dev[dev.len() / 2])
+}
+
 /// Measure a skeleton's cylinders against the points.
 pub fn metrics(points: &[Point3<f64>], skeleton: &Skeleton) -> Metrics {
     let cyls = cylinders(skeleton);

@@ -672,3 +672,34 @@ fn a_known_camera_makes_the_cloud_a_one_sided_view() {
         max_relative = 1e-12
     );
 }
+
+#[test]
+fn a_noisy_scan_is_measured_and_its_volume_not_trusted() {
+    let truth = small(4).generate().unwrap();
+    let clean = reconstruct(&truth.points, &ColonizeConfig::default()).unwrap();
+    let quiet = clean.surface_noise_m.unwrap();
+    assert!(quiet < 0.002, "{quiet}");
+    assert!(clean.volume_trusted());
+    // 5 mm of Gaussian noise per axis (seeded sums of uniforms).
+    let mut state = 99u64;
+    let mut normal = move || {
+        let mut s = 0.0;
+        for _ in 0..12 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            s += (state >> 11) as f64 / (1u64 << 53) as f64;
+        }
+        s - 6.0
+    };
+    let noisy: Vec<Point3<f64>> = truth
+        .points
+        .iter()
+        .map(|p| p + Vector3::new(normal(), normal(), normal()) * 0.005)
+        .collect();
+    let model = reconstruct(&noisy, &ColonizeConfig::default()).unwrap();
+    let n = model.surface_noise_m.unwrap();
+    // The radial spread is the added noise and the scan's own, less what the fits absorb.
+    assert!((0.003..0.007).contains(&n), "{n}");
+    assert!(!model.volume_trusted());
+}
