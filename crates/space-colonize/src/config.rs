@@ -152,7 +152,10 @@ pub struct ColonizeConfig {
     /// whatever its trunk slice covers ([`Parameters::one_sided`]), and radii under
     /// [`ACROSS_RAY_MAX_RADIUS_M`] are
     /// measured across the view ray too, where depth noise does not widen a branch, and the
-    /// smaller of that and the circle fit is kept. Default `None`: circle fits only.
+    /// smaller of that and the circle fit is kept. A capture whose silhouette pixels were
+    /// dropped (flying-pixel filters, steady-pixel masks: the pipeline's twin sees its trunk
+    /// over ±45° only) measures widths short, so the pipeline does not pass its camera.
+    /// Default `None`: circle fits only.
     pub camera_m: Option<Point3<f64>>,
     /// Pipe-model exponent e in r_parent^e = Σ r_child^e. Default [`PIPE_EXPONENT`].
     pub pipe_exponent: f64,

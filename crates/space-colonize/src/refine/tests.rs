@@ -150,3 +150,95 @@ fn depth_noise_widens_a_thin_branchs_circle_but_not_its_width_across_the_ray() {
         across_ray_radius(&plane, Vector3::zeros(), u, (v, u.cross(&v)), camera, 0.006).is_none()
     );
 }
+
+/// Two branches up z, 2 cm nodes: at x = 0 a 2.5 cm branch seen over ±45° from -y (a
+/// camera whose silhouette pixels are lost), at x = 0.5 m a 1 cm branch seen all round,
+/// both with `noise_m` of noise; hung from one root.
+fn arc_and_ring(noise_m: f64) -> (Graph, Vec<[f64; 3]>) {
+    let mut pos = Vec::new();
+    let mut parent = Vec::new();
+    for k in 0..=30_u32 {
+        pos.push(Vector3::new(0.0, 0.0, 0.02 * f64::from(k)));
+        parent.push(k.checked_sub(1).map(|p| p as usize));
+    }
+    for k in 0..=30_u32 {
+        pos.push(Vector3::new(0.5, 0.0, 0.02 * f64::from(k)));
+        parent.push(Some(if k == 0 { 0 } else { 30 + k as usize }));
+    }
+    let bridge = vec![false; pos.len()];
+    let mut state = 7u64;
+    let mut uniform = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let mut pts = Vec::new();
+    for zk in 0..300 {
+        let z = 0.002 * f64::from(zk);
+        for ak in -9..=9 {
+            // Facing -y: the normal within 45° of it.
+            let a = (-90.0 + 5.0 * f64::from(ak)).to_radians();
+            let r = 0.025 + noise_m * 3.4 * uniform();
+            pts.push([r * a.cos(), r * a.sin(), z]);
+        }
+        for ak in 0..12 {
+            let a = (30.0 * f64::from(ak)).to_radians();
+            let r = 0.01 + noise_m * 3.4 * uniform();
+            pts.push([0.5 + r * a.cos(), r * a.sin(), z]);
+        }
+    }
+    (
+        Graph {
+            pos,
+            parent,
+            bridge,
+        },
+        pts,
+    )
+}
+
+fn arc_parameters(one_sided: bool) -> Parameters {
+    Parameters {
+        growth: crate::config::Growth::Colonization,
+        bin_m: 0.015,
+        patch_m: 0.03,
+        spacing_m: 0.002,
+        trunk_radius_m: 0.025,
+        trunk_radius_fitted: true,
+        trunk_coverage: 0.3,
+        one_sided,
+        kill_distance_m: 0.04,
+        twig_kill_distance_m: 0.006,
+        step_m: 0.02,
+        influence_m: 0.11,
+        max_gap_m: 1.0,
+        root_m: [0.0; 3],
+        camera_m: None,
+        pipe_exponent: 2.5,
+        min_twig_m: 0.004,
+        max_iterations: 1000,
+        max_nodes: 1000,
+    }
+}
+
+#[test]
+fn a_one_sided_views_short_arcs_measure_where_the_noise_is_small_against_them() {
+    // Mid-branch nodes of the arc branch (away from the root fork and the tip).
+    let arc_radii = |fits: &[Option<f64>]| -> Vec<Option<f64>> { fits[5..25].to_vec() };
+    let (g, pts) = arc_and_ring(0.0005);
+    let keep = vec![true; pts.len()];
+    // A full scan's rule: a ±45° arc covers a quarter of its circle, too little.
+    let full = g.fit_radii(&pts, &keep, &arc_parameters(false));
+    assert!(arc_radii(&full).iter().all(Option::is_none), "{full:?}");
+    // The ring branch tells the scan's noise (0.5 mm, a fiftieth of the arc's radius).
+    let seen = g.fit_radii(&pts, &keep, &arc_parameters(true));
+    for r in arc_radii(&seen) {
+        let r = r.unwrap();
+        assert!((r / 0.025 - 1.0).abs() < 0.05, "{r}");
+    }
+    // With 5 mm of noise a short arc's radius is not measured.
+    let (g, pts) = arc_and_ring(0.005);
+    let seen = g.fit_radii(&pts, &keep, &arc_parameters(true));
+    assert!(arc_radii(&seen).iter().all(Option::is_none), "{seen:?}");
+}
