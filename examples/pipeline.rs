@@ -243,21 +243,28 @@ fn print_summary(report: &Report, out: &Path) {
     );
     let r = &report.reconstruction;
     println!(
-        "rebuild   {} points -> {} nodes, {} branches, {:.2} m of wood{} ({:.2} s)",
+        "rebuild   {} points -> {} nodes, {} branches, {:.2} m of wood, {:.2} L{}{} ({:.2} s)",
         r.points,
         r.nodes,
         r.branches,
         r.total_length_m,
+        r.volume_l,
+        if r.volume_trusted {
+            ""
+        } else {
+            " (noisy scan: the volume may run high)"
+        },
         match (
             r.mean_skeleton_error_m,
             r.p95_skeleton_error_m,
             r.truth_length_found
         ) {
             (Some(mean), Some(p95), Some(found)) => format!(
-                ", mean skeleton error {:.1} mm (p95 {:.1} mm), {:.0} % of the true length found",
+                ", mean skeleton error {:.1} mm (p95 {:.1} mm), {:.0} % of the true length found, volume {:.2} times the true one",
                 mean * 1e3,
                 p95 * 1e3,
-                100.0 * found
+                100.0 * found,
+                r.volume_ratio.unwrap_or(f64::NAN)
             ),
             _ => String::new(),
         },

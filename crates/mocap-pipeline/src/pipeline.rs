@@ -425,6 +425,14 @@ impl Pipeline {
                 mean_skeleton_error_m: error.map(|e| e.mean_skeleton_error_m),
                 p95_skeleton_error_m: error.map(|e| e.p95_skeleton_error_m),
                 truth_length_found: error.map(|e| e.truth_length_found),
+                volume_l: 1e3
+                    * cylinders(&recon.skeleton)
+                        .iter()
+                        .map(|c| std::f64::consts::PI * c.radius_m * c.radius_m * c.length_m)
+                        .sum::<f64>(),
+                volume_ratio: error.map(|e| e.volume_ratio),
+                surface_noise_m: recon.surface_noise_m,
+                volume_trusted: recon.volume_trusted(),
                 seconds: recon_s,
             },
             animation: AnimationSummary {

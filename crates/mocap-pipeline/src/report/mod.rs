@@ -96,6 +96,17 @@ pub struct ReconstructionSummary {
     /// Share of the true skeleton's length found (twin only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub truth_length_found: Option<f64>,
+    /// Wood volume, litres (each branch from its parent's surface).
+    pub volume_l: f64,
+    /// The model's volume over the true skeleton's (twin only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume_ratio: Option<f64>,
+    /// The scan's noise about the model's surface (branches of 2 cm or more), metres.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub surface_noise_m: Option<f64>,
+    /// Whether that noise leaves the volume trustworthy
+    /// (`space_colonize::Reconstruction::volume_trusted`).
+    pub volume_trusted: bool,
     /// Seconds.
     pub seconds: f64,
 }
@@ -193,8 +204,19 @@ impl Report {
             "\nFrames: {}. Reconstruction: {} points, {} nodes, {} branches, {:.2} m of wood",
             self.tracking.frames, rec.points, rec.nodes, rec.branches, rec.total_length_m
         );
+        let _ = write!(md, ", {:.2} L", rec.volume_l);
         if let Some(e) = rec.mean_skeleton_error_m {
             let _ = write!(md, ", mean skeleton error {:.1} mm", e * 1e3);
+        }
+        if let Some(v) = rec.volume_ratio {
+            let _ = write!(md, ", volume {v:.2} times the true one");
+        }
+        if !rec.volume_trusted {
+            let _ = write!(
+                md,
+                " (the scan's noise, {:.1} mm, makes the volume run high)",
+                1e3 * rec.surface_noise_m.unwrap_or(f64::NAN)
+            );
         }
         let _ = writeln!(
             md,
