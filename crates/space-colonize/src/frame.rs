@@ -16,7 +16,7 @@ use nalgebra::{Point3, Rotation3, Vector3};
 use serde::Serialize;
 
 use crate::error::{ColonizeError, Result};
-use crate::skeleton::{Skeleton, SkeletonNode};
+use crate::skeleton::Skeleton;
 
 /// Nearest depth a depth camera's cloud starts at, metres (every RGB-D camera of the
 /// recordings kinect-io reads has a minimum range of 0.2–0.5 m: Kinect v2 0.5 m, Azure
@@ -143,16 +143,7 @@ impl UpAxis {
     /// None in practice (the turned skeleton has the same structure); the
     /// [`Skeleton::new`] checks are passed on.
     pub fn skeleton_from_z_up(self, skeleton: &Skeleton) -> Result<Skeleton> {
-        Skeleton::new(
-            skeleton
-                .nodes()
-                .iter()
-                .map(|n| SkeletonNode {
-                    position: self.from_z_up(&n.position),
-                    ..*n
-                })
-                .collect(),
-        )
+        skeleton.map_positions(|p| self.from_z_up(p))
     }
 }
 

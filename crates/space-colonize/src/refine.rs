@@ -31,10 +31,11 @@ const RELIABLE_FIT_COVERAGE: f64 = 0.4;
 /// on branches over 2 cm and 0.49–1.02 of the true volume over seeds 7–10.
 const SHORT_ARC_COVERAGE: f64 = 0.25;
 /// ... where the scan's noise (the median residual of the fits covering at least
-/// [`RELIABLE_FIT_COVERAGE`]) is at most this share of the radius: the twin's 1.3 mm on
-/// 2–3 cm branches passes, the coffee views' 6 mm depth noise on anything but the trunk does
-/// not (accepting their short arcs by their own residual, under 0.1 r, put their volumes
-/// 1–6 points higher: a circle flattened by noise fits its arc closely).
+/// [`RELIABLE_FIT_COVERAGE`]) is at most this share of the radius: the twin's 0.8 mm lets
+/// branches from 11 mm in, the coffee views' 3.2–3.3 mm (6 mm of depth noise) keeps every
+/// branch under 4.6 cm out (accepting their short arcs by their own residual, under 0.1 r,
+/// put their volumes 1–6 points higher: a circle flattened by noise fits its arc closely;
+/// 0.05 left the twin at ×0.88–1.15, 0.1 let the coffee views' trunks in, +0.1 to +1.3 L).
 const SHORT_ARC_NOISE_PER_RADIUS: f64 = 0.07;
 /// Fewest fits covering [`RELIABLE_FIT_COVERAGE`] for that noise to be known.
 const SHORT_ARC_MIN_NOISE_FITS: usize = 10;

@@ -163,6 +163,23 @@ impl Skeleton {
         })
     }
 
+    /// The same skeleton with every node moved by `f` (ids, parents and radii kept): a
+    /// skeleton turned or shifted into another frame.
+    ///
+    /// # Errors
+    /// [`ColonizeError::InvalidSkeleton`] when `f` gives a position that is not finite.
+    pub fn map_positions(&self, f: impl Fn(&Point3<f64>) -> Point3<f64>) -> Result<Self> {
+        Self::new(
+            self.nodes
+                .iter()
+                .map(|n| SkeletonNode {
+                    position: f(&n.position),
+                    ..*n
+                })
+                .collect(),
+        )
+    }
+
     /// The nodes, indexed by id.
     pub fn nodes(&self) -> &[SkeletonNode] {
         &self.nodes

@@ -91,19 +91,23 @@ pub struct SyntheticTree {
 
 /// SplitMix64 (Steele, Lea, Flood 2014; `rand_xoshiro`'s, the workspace's one generator):
 /// small, seedable, good enough for test data.
-struct Rng(SplitMix64);
+pub(crate) struct Rng(SplitMix64);
 
 impl Rng {
+    /// The generator seeded with `seed`.
+    pub(crate) fn new(seed: u64) -> Self {
+        Self(SplitMix64::seed_from_u64(seed))
+    }
     fn next_u64(&mut self) -> u64 {
         self.0.next_u64()
     }
-    fn uniform(&mut self) -> f64 {
+    pub(crate) fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
     fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.uniform()
     }
-    fn normal(&mut self) -> f64 {
+    pub(crate) fn normal(&mut self) -> f64 {
         let u1 = self.uniform().max(1e-300);
         let u2 = self.uniform();
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
@@ -127,7 +131,7 @@ impl SyntheticConfig {
     /// negative noise, or more than [`MAX_SYNTHETIC_POINTS`] points or leaf points.
     pub fn generate(&self) -> Result<SyntheticTree> {
         self.check()?;
-        let mut rng = Rng(SplitMix64::seed_from_u64(self.seed));
+        let mut rng = Rng::new(self.seed);
         let mut positions: Vec<Point3<f64>> = vec![Point3::origin()];
         let mut parents: Vec<Option<usize>> = vec![None];
         // (start node, direction, length, order)

@@ -101,22 +101,12 @@ fn a_stub_is_kept_only_when_a_point_needs_it() {
 /// cross-section across a branch up z: `lateral` positions (y) with `depth_noise_m` along
 /// the ray, in the node's plane basis (u = x, v = y).
 fn half_ring(r: f64, lateral: &[f64], depth_noise_m: f64, seed: u64) -> Vec<[f64; 2]> {
-    let mut state = seed;
-    let mut normal = move || {
-        let mut s = 0.0;
-        for _ in 0..12 {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            s += (state >> 11) as f64 / (1u64 << 53) as f64;
-        }
-        s - 6.0
-    };
+    let mut rng = crate::synthetic::Rng::new(seed);
     lateral
         .iter()
         .map(|&y| {
             [
-                -(r * r - y * y).max(0.0).sqrt() + depth_noise_m * normal(),
+                -(r * r - y * y).max(0.0).sqrt() + depth_noise_m * rng.normal(),
                 y,
             ]
         })
@@ -166,25 +156,19 @@ fn arc_and_ring(noise_m: f64) -> (Graph, Vec<[f64; 3]>) {
         parent.push(Some(if k == 0 { 0 } else { 30 + k as usize }));
     }
     let bridge = vec![false; pos.len()];
-    let mut state = 7u64;
-    let mut uniform = move || {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut rng = crate::synthetic::Rng::new(7);
     let mut pts = Vec::new();
     for zk in 0..300 {
         let z = 0.002 * f64::from(zk);
         for ak in -9..=9 {
             // Facing -y: the normal within 45° of it.
             let a = (-90.0 + 5.0 * f64::from(ak)).to_radians();
-            let r = 0.025 + noise_m * 3.4 * uniform();
+            let r = 0.025 + noise_m * rng.normal();
             pts.push([r * a.cos(), r * a.sin(), z]);
         }
         for ak in 0..12 {
             let a = (30.0 * f64::from(ak)).to_radians();
-            let r = 0.01 + noise_m * 3.4 * uniform();
+            let r = 0.01 + noise_m * rng.normal();
             pts.push([0.5 + r * a.cos(), r * a.sin(), z]);
         }
     }

@@ -581,7 +581,7 @@ fn no_ground_is_found_under_trees_cut_out_of_their_scene() {
 
 #[test]
 fn a_cloud_in_a_cameras_frame_is_flagged_and_can_be_turned_z_up() {
-    use space_colonize::{Skeleton, SkeletonNode, UpAxis};
+    use space_colonize::UpAxis;
     let truth = small(5).generate().unwrap();
     assert!(
         !reconstruct(&truth.points, &ColonizeConfig::default())
@@ -604,18 +604,7 @@ fn a_cloud_in_a_cameras_frame_is_flagged_and_can_be_turned_z_up() {
     let turned: Vec<Point3<f64>> = in_camera.iter().map(|p| up.to_z_up(p)).collect();
     let model = reconstruct(&turned, &ColonizeConfig::default()).unwrap();
     assert!(!model.camera_frame_suspected);
-    let shifted = Skeleton::new(
-        truth
-            .skeleton
-            .nodes()
-            .iter()
-            .map(|n| SkeletonNode {
-                position: n.position - camera,
-                ..*n
-            })
-            .collect(),
-    )
-    .unwrap();
+    let shifted = truth.skeleton.map_positions(|p| p - camera).unwrap();
     let e = skeleton_error(&model.skeleton, &shifted);
     assert!(e.mean_skeleton_error_m < 0.012, "{e:?}");
     assert!(e.truth_length_found > 0.97, "{e:?}");
@@ -629,18 +618,7 @@ fn a_cloud_in_a_cameras_frame_is_flagged_and_can_be_turned_z_up() {
         "{m_back:?} {m_z_up:?}"
     );
     // Read as Z up, the camera-frame cloud gives a model that is not the tree.
-    let wrong_in_tree_frame = Skeleton::new(
-        read_z_up
-            .skeleton
-            .nodes()
-            .iter()
-            .map(|n| SkeletonNode {
-                position: up.to_z_up(&n.position),
-                ..*n
-            })
-            .collect(),
-    )
-    .unwrap();
+    let wrong_in_tree_frame = read_z_up.skeleton.map_positions(|p| up.to_z_up(p)).unwrap();
     let e_wrong = skeleton_error(&wrong_in_tree_frame, &shifted);
     // (seed 5: 30 mm and 4.6 times the length, against 3.9 mm and 1.14 turned)
     assert!(
@@ -680,23 +658,14 @@ fn a_noisy_scan_is_measured_and_its_volume_not_trusted() {
     let quiet = clean.surface_noise_m.unwrap();
     assert!(quiet < 0.002, "{quiet}");
     assert!(clean.volume_trusted());
-    // 5 mm of Gaussian noise per axis (seeded sums of uniforms).
-    let mut state = 99u64;
-    let mut normal = move || {
-        let mut s = 0.0;
-        for _ in 0..12 {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            s += (state >> 11) as f64 / (1u64 << 53) as f64;
-        }
-        s - 6.0
-    };
-    let noisy: Vec<Point3<f64>> = truth
-        .points
-        .iter()
-        .map(|p| p + Vector3::new(normal(), normal(), normal()) * 0.005)
-        .collect();
+    // The same tree with 5 mm of Gaussian noise per axis.
+    let noisy = SyntheticConfig {
+        noise_m: 0.005,
+        ..small(4)
+    }
+    .generate()
+    .unwrap()
+    .points;
     let model = reconstruct(&noisy, &ColonizeConfig::default()).unwrap();
     let n = model.surface_noise_m.unwrap();
     // The radial spread is the added noise and the scan's own, less what the fits absorb.
