@@ -1,7 +1,7 @@
 //! Reconstruction speed on synthetic clouds of 10k, 100k and 1M points (the issue's sizes),
 //! by space colonization and by level sets, and on the real AdTree clouds when
 //! `../shared/data/pointclouds/adtree/` is present (issue 22: at most half of AdTree's
-//! 1.8 s on tree7 and 3.3 s on Paris_Luxembourg_1). `cargo test --benches` runs the 10k
+//! 1.8 s on tree7 and 3.3 s on Paris_Luxembourg_1), and wood/leaf separation. `cargo test --benches` runs the 10k
 //! cases once; `cargo bench` runs all.
 #![allow(missing_docs, clippy::expect_used, clippy::unwrap_used)]
 
@@ -9,7 +9,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use treemocap::space_colonize::synthetic::SyntheticConfig;
-use treemocap::space_colonize::{ColonizeConfig, Growth, reconstruct};
+use treemocap::space_colonize::{ColonizeConfig, Growth, WoodConfig, reconstruct, separate_wood};
 
 fn bench(c: &mut Criterion) {
     let full = std::env::args().any(|a| a == "--bench");
@@ -33,6 +33,20 @@ fn bench(c: &mut Criterion) {
         g.bench_function(format!("reconstruct_levels_{}k", n / 1000), |b| {
             b.iter(|| reconstruct(black_box(&tree.points), &levels()).unwrap());
         });
+        // Wood/leaf separation on the same tree in leaf (half as many leaf points again);
+        // the 1M case is timed once in `docs/benchmarks.md` (about a minute a run).
+        if n <= 100_000 {
+            let leafy = SyntheticConfig {
+                points: n,
+                leaf_points: n / 2,
+                ..Default::default()
+            }
+            .generate()
+            .unwrap();
+            g.bench_function(format!("separate_wood_{}k_plus_leaves", n / 1000), |b| {
+                b.iter(|| separate_wood(black_box(&leafy.points), &WoodConfig::default()).unwrap());
+            });
+        }
     }
     if full {
         for name in ["tree7", "tree13", "Paris_Luxembourg_1"] {

@@ -1,7 +1,7 @@
 //! A static tree model (skeleton, radii, mesh, cylinders) from a point cloud, with its fidelity.
 //!
 //! ```text
-//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth auto|colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv] [--keep-ground] [--up AXIS] [--view-from X,Y,Z] [--camera-at X,Y,Z]
+//! cargo run --release --example reconstruct_tree -- <CLOUD> [--growth auto|colonization|levels] [--out-skeleton s.json] [--out-mesh tree.obj] [--out-cylinders c.csv] [--keep-ground] [--separate-leaves] [--out-leaves l.xyz] [--up AXIS] [--view-from X,Y,Z] [--camera-at X,Y,Z]
 //! ```
 //!
 //! `CLOUD`: XYZ text, PLY or PCD (kinect-io's readers), metres, Z up; `--up AXIS` names
@@ -20,7 +20,11 @@
 //! what `"growth"` did, the `"up"` axis used and any `"warnings"`. Progress goes to stderr. A ground plane under the tree is set
 //! aside before growth (`--keep-ground` keeps it) and reported as `"ground"` (the plane it
 //! was seeded from, `normal`·p = `offset_m`; `thickness_m`, `points`, `cells`, `cell_m`),
-//! with `"fidelity_above_ground"`.
+//! with `"fidelity_above_ground"`. `--separate-leaves` sets the points of leaves aside
+//! before growth (`space_colonize::separate_wood`), so a scan in leaf gives a wood
+//! skeleton; `"leaves"` counts them and `"fidelity_to_wood"` measures the model against
+//! the points it grew from (neither ground nor leaves); `--out-leaves` writes them as XYZ
+//! text in the cloud's frame.
 //!
 //! With `--view-from X,Y,Z` the cloud is first reduced to what a Kinect v2 there would see
 //! (`space_colonize::camera_view`: the near half of each branch, `--depth-noise-m` along the
@@ -42,9 +46,9 @@ use treemocap::nalgebra::Point3;
 use treemocap::space_colonize::synthetic::{SkeletonError, SyntheticConfig, skeleton_error};
 use treemocap::space_colonize::{
     AUTO_NEAR_SHARE, ColonizeConfig, DEFAULT_MESH_SIDES, Fidelity, Ground, Growth, GrowthReport,
-    KINECT_DEPTH_NOISE_M, Metrics, Parameters, Reconstruction, Skeleton, Stage, UpAxis, ViewConfig,
-    camera_view, cylinders, cylinders_to_csv, fidelity, looks_like_camera_frame, metrics,
-    reconstruct_with_progress, tube_mesh,
+    KINECT_DEPTH_NOISE_M, Leaves, Metrics, Parameters, Reconstruction, Skeleton, Stage, UpAxis,
+    ViewConfig, camera_view, cylinders, cylinders_to_csv, fidelity, looks_like_camera_frame,
+    metrics, reconstruct_with_progress, tube_mesh,
 };
 
 mod common;
@@ -88,6 +92,14 @@ struct Args {
     /// default they are set aside and reported as `"ground"`)
     #[arg(long = "keep-ground")]
     keep_ground: bool,
+    /// Set aside the points of leaves before growth, so a scan in leaf gives a wood
+    /// skeleton (twigs inside foliage go with the leaves); reported as `"leaves"`
+    #[arg(long = "separate-leaves")]
+    separate_leaves: bool,
+    /// Write the points taken for leaves as XYZ text (metres, the cloud's frame); needs
+    /// --separate-leaves
+    #[arg(long = "out-leaves", value_name = "FILE", requires = "separate_leaves")]
+    leaves: Option<PathBuf>,
     /// The cloud's up axis: `z` (the default: the tree frame), `-y` (a level depth
     /// camera's own frame, y down, as `capture_to_cloud` writes it), `y` (Y-up exports),
     /// `x`, `-x` or `-z`. The outputs are turned back into the cloud's frame
@@ -161,6 +173,13 @@ struct Report {
     /// `"fidelity"` without the ground's points, which the model rightly does not reach.
     #[serde(skip_serializing_if = "Option::is_none")]
     fidelity_above_ground: Option<Fidelity>,
+    /// The points taken for leaves and set aside before growth (`--separate-leaves`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    leaves: Option<Leaves>,
+    /// `"fidelity"` against the points the model grew from (neither ground nor leaves),
+    /// with `--separate-leaves`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    fidelity_to_wood: Option<Fidelity>,
     #[serde(skip_serializing_if = "Option::is_none")]
     truth: Option<SkeletonError>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -189,8 +208,7 @@ struct ViewReport {
 
 fn run(
     points: &[Point3<f64>],
-    growth: Growth,
-    keep_ground: bool,
+    args: &Args,
     camera_m: Option<Point3<f64>>,
 ) -> Result<(Reconstruction, f64), Box<dyn std::error::Error>> {
     let t = Instant::now();
@@ -208,8 +226,9 @@ fn run(
         );
     };
     let config = ColonizeConfig {
-        growth,
-        remove_ground: !keep_ground,
+        growth: args.growth,
+        remove_ground: !args.keep_ground,
+        separate_leaves: args.separate_leaves,
         camera_m,
         ..ColonizeConfig::default()
     };
@@ -225,6 +244,13 @@ fn run(
             100.0 * g.cell_m,
             g.normal[2].clamp(-1.0, 1.0).acos().to_degrees(),
             100.0 * g.thickness_m
+        );
+    }
+    if let Some(l) = &model.leaves {
+        eprintln!(
+            "[{seconds:6.2} s] set aside {} of {} points as leaves",
+            l.points,
+            points.len()
         );
     }
     if let Some(share) = model.growth.colonization_near_cloud {
@@ -266,18 +292,14 @@ fn report(
         parameters: model.parameters,
         growth: model.growth,
         ground: model.ground.clone(),
-        fidelity_above_ground: model.ground.as_ref().map(|g| {
-            let mut on = vec![false; points.len()];
-            for &i in &g.indices {
-                on[i] = true;
-            }
-            let above: Vec<Point3<f64>> = points
-                .iter()
-                .zip(&on)
-                .filter(|(_, g)| !**g)
-                .map(|(p, _)| *p)
-                .collect();
-            fidelity(&above, skeleton)
+        fidelity_above_ground: model
+            .ground
+            .as_ref()
+            .map(|g| fidelity(&without(points, &[&g.indices]), skeleton)),
+        leaves: model.leaves.clone(),
+        fidelity_to_wood: model.leaves.as_ref().map(|l| {
+            let ground = model.ground.as_ref().map_or(&[][..], |g| &g.indices[..]);
+            fidelity(&without(points, &[ground, &l.indices]), skeleton)
         }),
         truth,
         view: None,
@@ -286,6 +308,22 @@ fn report(
         volume_trusted: model.volume_trusted(),
         warnings: Vec::new(),
     }
+}
+
+/// `points` without those at any of the `indices`.
+fn without(points: &[Point3<f64>], indices: &[&[usize]]) -> Vec<Point3<f64>> {
+    let mut out = vec![false; points.len()];
+    for &i in indices.iter().flat_map(|ix| ix.iter()) {
+        if let Some(o) = out.get_mut(i) {
+            *o = true;
+        }
+    }
+    points
+        .iter()
+        .zip(&out)
+        .filter(|(_, o)| !**o)
+        .map(|(p, _)| *p)
+        .collect()
 }
 
 /// The warning for a cloud that looks like a depth camera's frame but is read Z up.
@@ -371,8 +409,7 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         None => (whole.clone(), whole_z_up),
     };
     let camera_m = args.view_from.or(args.camera_at).map(|c| up.to_z_up(&c));
-    let (model, seconds) = run(&points_z_up, args.growth, args.keep_ground, camera_m)
-        .map_err(|e| format!("{name}: {e}"))?;
+    let (model, seconds) = run(&points_z_up, args, camera_m).map_err(|e| format!("{name}: {e}"))?;
     let skeleton = up.skeleton_from_z_up(&model.skeleton)?;
     let error = truth.as_ref().map(|t| skeleton_error(&skeleton, t));
     if let Some(p) = &args.skeleton {
@@ -386,6 +423,15 @@ fn run_main(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     if let Some(p) = &args.cylinders {
         std::fs::write(p, cylinders_to_csv(&cylinders(&skeleton)))
             .map_err(|e| format!("{}: {e}", p.display()))?;
+        eprintln!("wrote {}", p.display());
+    }
+    if let (Some(p), Some(l)) = (&args.leaves, &model.leaves) {
+        let text: String = l
+            .indices
+            .iter()
+            .map(|&i| format!("{} {} {}\n", points[i].x, points[i].y, points[i].z))
+            .collect();
+        std::fs::write(p, text).map_err(|e| format!("{}: {e}", p.display()))?;
         eprintln!("wrote {}", p.display());
     }
     let mut r = report(name, &points, &model, &skeleton, seconds, error);

@@ -196,3 +196,66 @@ fn reconstruct_tree_flags_a_cloud_in_a_cameras_frame_and_turns_it_with_up() {
     assert!((y - 1.2).abs() < 0.1 && (z - 3.0).abs() < 0.2, "{root}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn reconstruct_tree_sets_leaves_aside_and_writes_them() {
+    use treemocap::space_colonize::synthetic::SyntheticConfig;
+    let Some(program) = program("reconstruct_tree") else {
+        eprintln!("skipped: the example programs are not built (run `cargo test --workspace`)");
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("treemocap-leaves-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let tree = SyntheticConfig {
+        points: 8_000,
+        leaf_points: 4_000,
+        seed: 11,
+        ..Default::default()
+    }
+    .generate()
+    .unwrap();
+    let text: String = tree
+        .points
+        .iter()
+        .map(|p| format!("{} {} {}\n", p.x, p.y, p.z))
+        .collect();
+    let cloud = dir.join("leafy.xyz");
+    std::fs::write(&cloud, text).unwrap();
+    let leaves = dir.join("leaves.xyz");
+    let run = |args: &[&str]| Command::new(&program).args(args).output().unwrap();
+    let cloud_arg = cloud.to_str().unwrap();
+    let out = run(&[
+        cloud_arg,
+        "--separate-leaves",
+        "--out-leaves",
+        leaves.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let n = json["leaves"]["points"].as_u64().unwrap() as usize;
+    let written = std::fs::read_to_string(&leaves).unwrap();
+    assert_eq!(written.lines().count(), n);
+    // Most of the leaves, and some of the wood: a fifth to a third of so small a cloud's
+    // wood (twigs among the leaves, forks) goes with them.
+    assert!(n > 3_000 && n < 7_500, "{n}");
+    let to_wood = &json["fidelity_to_wood"];
+    assert!(
+        to_wood["model_near_cloud"].as_f64().unwrap() > 0.9,
+        "{to_wood}"
+    );
+    assert_eq!(
+        to_wood["points"].as_u64().unwrap() as usize,
+        tree.points.len() - n
+    );
+    // Without separation: no "leaves", and --out-leaves alone is a usage error.
+    let plain: serde_json::Value = serde_json::from_slice(&run(&[cloud_arg]).stdout).unwrap();
+    assert!(plain.get("leaves").is_none() && plain.get("fidelity_to_wood").is_none());
+    let usage = run(&[cloud_arg, "--out-leaves", leaves.to_str().unwrap()]);
+    assert_eq!(usage.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -15,6 +15,7 @@ use crate::config::{
 };
 use crate::error::{ColonizeError, Result};
 use crate::ground::{Ground, find_ground};
+use crate::wood::{Leaves, MAX_OFF_AXIS_SHARE, classify};
 
 /// Static k-d tree over points, items are indices.
 pub(crate) type PointTree = ImmutableKdTree<f64, u32, 3, 32>;
@@ -60,6 +61,8 @@ pub(crate) struct Prepared {
     pub outliers: usize,
     /// The ground found under the tree; its points are not in `pts`.
     pub ground: Option<Ground>,
+    /// The points taken for leaves ([`ColonizeConfig::separate_leaves`]); not in `pts`.
+    pub leaves: Option<Leaves>,
     pub params: Parameters,
 }
 
@@ -80,9 +83,9 @@ pub(crate) fn all_finite(points: &[Point3<f64>]) -> Result<()> {
     }
 }
 
-/// Validate the points and derive the parameters the config leaves open.
-pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result<Prepared> {
-    config.validate()?;
+/// Every point finite and within [`MAX_COORDINATE_M`], at least [`MIN_POINTS`] of them and
+/// no more than `u32` indices hold.
+pub(crate) fn check_points(points: &[Point3<f64>]) -> Result<()> {
     all_finite(points)?;
     if let Some((index, p)) = points
         .iter()
@@ -109,6 +112,13 @@ pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result
             format!("{} points; at most {} supported", points.len(), u32::MAX),
         ));
     }
+    Ok(())
+}
+
+/// Validate the points and derive the parameters the config leaves open.
+pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result<Prepared> {
+    config.validate()?;
+    check_points(points)?;
     check_thickness(points)?;
     let mut pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
     let mut tree = PointTree::new_from_slice(&pts);
@@ -123,11 +133,14 @@ pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result
     } else {
         None
     };
+    // Indices into the points given of the points kept.
+    let mut given: Vec<usize> = (0..pts.len()).collect();
     if let Some(g) = &ground {
         let mut on = vec![false; pts.len()];
         for &i in &g.indices {
             on[i] = true;
         }
+        given.retain(|&i| !on[i]);
         pts = pts
             .iter()
             .zip(&on)
@@ -151,6 +164,17 @@ pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result
             spacing_m = median_spacing(&pts, &tree)?;
         }
     }
+    let leaves = if config.separate_leaves {
+        let (wood, leaves) = set_leaves_aside(&pts, &tree, &given, spacing_m)?;
+        pts = wood;
+        tree = PointTree::new_from_slice(&pts);
+        if config.spacing_m.is_none() {
+            spacing_m = median_spacing(&pts, &tree)?;
+        }
+        Some(leaves)
+    } else {
+        None
+    };
     // Kill and influence need the trunk radius, the outlier clusters need the influence,
     // and the trunk fit needs the main cluster: fit on all points first, then refit on the
     // main cluster.
@@ -179,8 +203,46 @@ pub(crate) fn prepare(points: &[Point3<f64>], config: &ColonizeConfig) -> Result
         main,
         outliers,
         ground,
+        leaves,
         params,
     })
+}
+
+/// The wood of `pts` (whose indices in the points given are `given`) and its leaves
+/// ([`classify`]).
+fn set_leaves_aside(
+    pts: &[[f64; 3]],
+    tree: &PointTree,
+    given: &[usize],
+    spacing_m: f64,
+) -> Result<(Vec<[f64; 3]>, Leaves)> {
+    let (wood, _) = classify(pts, tree, spacing_m, MAX_OFF_AXIS_SHARE);
+    let indices: Vec<usize> = given
+        .iter()
+        .zip(&wood)
+        .filter(|(_, w)| !**w)
+        .map(|(&i, _)| i)
+        .collect();
+    let kept = pts.len() - indices.len();
+    if kept < MIN_POINTS {
+        return Err(ColonizeError::param(
+            "separate_leaves",
+            format!(
+                "{} of {} points were taken for leaves and {kept} for wood, fewer than the \
+                 {MIN_POINTS} a tree needs (a cloud without wood? set separate_leaves to \
+                 false to keep them)",
+                indices.len(),
+                pts.len()
+            ),
+        ));
+    }
+    Ok((
+        pts_in(pts, &wood),
+        Leaves {
+            points: indices.len(),
+            indices,
+        },
+    ))
 }
 
 fn pts_in(pts: &[[f64; 3]], keep: &[bool]) -> Vec<[f64; 3]> {

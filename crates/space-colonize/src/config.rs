@@ -169,6 +169,11 @@ pub struct ColonizeConfig {
     /// see [`crate::Ground`]) and set its points aside before growth. Default true; the
     /// plane and its points are reported in [`crate::Reconstruction::ground`].
     pub remove_ground: bool,
+    /// Set aside the points of leaves before growth ([`crate::separate_wood`] with its
+    /// defaults, after the ground), so that a scan in leaf gives a wood skeleton; they are
+    /// reported in [`crate::Reconstruction::leaves`]. Default false: every point is wood
+    /// (leaf-off scans, one-sided views; a leafy crown is then followed to its leaves).
+    pub separate_leaves: bool,
     /// Taubin smoothing passes along branch chains after centring. Default 3.
     pub smoothing_iterations: usize,
     /// Terminal twigs that reach less than this beyond their parent's surface are removed
@@ -200,6 +205,7 @@ impl Default for ColonizeConfig {
             radius_fits: true,
             centring: true,
             remove_ground: true,
+            separate_leaves: false,
             smoothing_iterations: 3,
             min_twig_m: None,
             max_iterations: None,

@@ -496,6 +496,7 @@ fn thinned(prep: &Prepared, voxel_m: f64) -> Result<Prepared> {
         tree,
         outliers: 0,
         ground: prep.ground.clone(),
+        leaves: prep.leaves.clone(),
         params: crate::config::Parameters {
             spacing_m,
             ..prep.params

@@ -10,7 +10,10 @@
 //!   set, see [`Parameters`]):
 //!   1. validation, median point spacing, a ground plane under the tree set aside
 //!      ([`Ground`]: the lowest near-horizontal surface that fills a wide area, with next
-//!      to nothing below it), trunk radius from a circle fitted to the lowest slice,
+//!      to nothing below it), optionally the points of leaves
+//!      ([`ColonizeConfig::separate_leaves`], [`separate_wood`]: normals that do not share
+//!      an axis; a scan in leaf then gives a wood skeleton), trunk radius from a circle
+//!      fitted to the lowest slice,
 //!      clusters beyond the largest bridge and isolated points (fewer than 3 others
 //!      within 15 spacings: stray returns) set aside as outliers;
 //!   2. growth, by default [`Growth::Auto`]: space colonization, kept unless less than
@@ -83,6 +86,7 @@ mod refine;
 mod skeleton;
 pub mod synthetic;
 mod view;
+mod wood;
 
 pub use cloud::{MAX_COORDINATE_M, MIN_POINTS};
 pub use config::{
@@ -116,6 +120,12 @@ pub use levels::{
 };
 pub use metrics::{Metrics, NEAR_CLOUD_M, NOISE_BRANCH_RADIUS_M, metrics};
 pub use view::{KINECT_DEPTH_NOISE_M, KINECT_V2_PIXEL_RAD, MIN_PIXEL_RAD, ViewConfig, camera_view};
+pub use wood::{
+    AXIS_TOLERANCE_DEG, COHERENCE_NEIGHBOURS, COHERENCE_SPACINGS, FILL_SHARE, LINK_SPACINGS,
+    Leaves, MAX_OFF_AXIS_SHARE, MAX_TWIG_WIDTH_RATIO, MIN_COHERENCE_NEIGHBOURS,
+    MIN_COHERENCE_RADIUS_M, MIN_WOOD_EXTENT_M, MIN_WOOD_EXTENT_SPACINGS, NORMAL_NEIGHBOURS,
+    NORMAL_SCALES, WEAK_PER_STRONG, WoodConfig, WoodSplit, separate_wood,
+};
 
 /// The types most programs need.
 pub mod prelude {

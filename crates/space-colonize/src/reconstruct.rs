@@ -13,6 +13,7 @@ use crate::levels::{Levels, grow_levels};
 use crate::metrics::NEAR_CLOUD_M;
 use crate::refine::{Graph, far_tails, twig_stubs, unneeded_stubs};
 use crate::skeleton::{Branch, Skeleton, SkeletonNode};
+use crate::wood::Leaves;
 
 /// Laplacian passes on the grown nodes before centring.
 const PRE_CENTRING_PASSES: usize = 3;
@@ -96,6 +97,10 @@ pub struct Reconstruction {
     /// The ground plane found under the tree and set aside before growth
     /// ([`ColonizeConfig::remove_ground`]); `None` when there was none (or not asked for).
     pub ground: Option<Ground>,
+    /// The points taken for leaves and set aside before growth
+    /// ([`ColonizeConfig::separate_leaves`], [`crate::separate_wood`]); `None` when not
+    /// asked for.
+    pub leaves: Option<Leaves>,
     /// The cloud looked like a depth camera's own frame (y down, z forward), not Z up
     /// ([`crate::looks_like_camera_frame`]): the model was grown from the front of the tree
     /// upward along the view and cannot be trusted. Turn the cloud first
@@ -362,6 +367,7 @@ pub fn reconstruct_with_progress(
         branches,
         parameters: p,
         ground: prep.ground.clone(),
+        leaves: prep.leaves.clone(),
         camera_frame_suspected: crate::frame::looks_like_camera_frame(points),
         surface_noise_m,
     })

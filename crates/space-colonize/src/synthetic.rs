@@ -85,8 +85,10 @@ impl Default for SyntheticConfig {
 pub struct SyntheticTree {
     /// The skeleton the points were sampled from.
     pub skeleton: Skeleton,
-    /// The points, metres.
+    /// The points, metres: first the wood's, then the leaves'.
     pub points: Vec<Point3<f64>>,
+    /// How many of [`Self::points`] are on wood (the first ones); the rest are on leaves.
+    pub wood_points: usize,
 }
 
 /// SplitMix64 (Steele, Lea, Flood 2014; `rand_xoshiro`'s, the workspace's one generator):
@@ -206,8 +208,13 @@ impl SyntheticConfig {
                 .collect(),
         )?;
         let mut points = self.sample(&skeleton, &mut rng);
+        let wood_points = points.len();
         points.extend(self.leaves(&skeleton, &mut rng));
-        Ok(SyntheticTree { skeleton, points })
+        Ok(SyntheticTree {
+            skeleton,
+            points,
+            wood_points,
+        })
     }
 
     /// [`SyntheticConfig::leaf_points`] points on leaves (none when the tree has no twig

@@ -5,3 +5,4 @@ mod geometry;
 mod real_data;
 mod reconstruct;
 mod skeleton;
+mod wood;

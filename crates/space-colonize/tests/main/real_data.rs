@@ -151,3 +151,26 @@ fn coffee_views_with_their_camera_keep_their_volume() {
         );
     }
 }
+
+/// Leaf-off, separation keeps the wood: the coffee tree is all wood.
+#[test]
+fn the_leaf_off_coffee_tree_keeps_its_wood_when_leaves_are_separated() {
+    use space_colonize::{WoodConfig, separate_wood};
+    let Some(points) = cloud("rtwig_gymnocladus/cloud.txt") else {
+        return;
+    };
+    let split = separate_wood(&points, &WoodConfig::default()).unwrap();
+    let kept = split.wood_points() as f64 / points.len() as f64;
+    assert!(kept > 0.95, "{kept}");
+    let model = reconstruct(
+        &points,
+        &ColonizeConfig {
+            separate_leaves: true,
+            ..ColonizeConfig::default()
+        },
+    )
+    .unwrap();
+    let m = metrics(&points, &model.skeleton);
+    println!("kept {kept:.3}; {m:?}");
+    assert!(m.within_2cm > 0.98, "{m:?}");
+}

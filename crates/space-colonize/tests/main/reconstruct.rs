@@ -457,7 +457,7 @@ fn a_cloud_holding_every_point_twice_is_the_same_tree() {
 
 /// A disc of ground of `radius_m` around the trunk's foot, points `step_m` apart (jittered),
 /// rising `slope` per metre along x, with Gaussian roughness `rough_m`.
-fn ground_disc(
+pub(crate) fn ground_disc(
     tree: &[Point3<f64>],
     radius_m: f64,
     step_m: f64,
