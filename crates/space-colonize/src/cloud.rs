@@ -66,6 +66,11 @@ pub(crate) struct Prepared {
     pub params: Parameters,
 }
 
+/// `k` as the neighbour count of a k-d tree query, at least 1.
+pub(crate) fn at_least_one(k: usize) -> std::num::NonZeroUsize {
+    std::num::NonZeroUsize::new(k).unwrap_or(std::num::NonZeroUsize::MIN)
+}
+
 /// The first point that is not finite, as [`ColonizeError::NonFinitePoint`].
 pub(crate) fn all_finite(points: &[Point3<f64>]) -> Result<()> {
     match points

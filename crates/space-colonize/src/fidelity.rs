@@ -108,8 +108,7 @@ pub fn fidelity(points: &[Point3<f64>], skeleton: &Skeleton) -> Fidelity {
         })
         .collect();
     let edges: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&mids);
-    let k = std::num::NonZeroUsize::new(CANDIDATE_EDGES.min(cones.len()))
-        .unwrap_or(std::num::NonZeroUsize::MIN);
+    let k = crate::cloud::at_least_one(CANDIDATE_EDGES.min(cones.len()));
     let (mut sum, mut within) = (0.0, 0usize);
     for p in points {
         let d = edges

@@ -103,7 +103,7 @@ impl NeighbourGraph {
 fn neighbour_graph(prep: &Prepared) -> NeighbourGraph {
     let n = prep.pts.len();
     let max2 = (EDGE_SPACINGS * prep.params.spacing_m).powi(2);
-    let k = std::num::NonZeroUsize::new(NEIGHBOURS + 1).unwrap_or(std::num::NonZeroUsize::MIN);
+    let k = crate::cloud::at_least_one(NEIGHBOURS + 1);
     let mut pairs: Vec<(u32, u32, f64)> = Vec::with_capacity(n * NEIGHBOURS);
     for (i, p) in prep.pts.iter().enumerate() {
         if !prep.main[i] {
@@ -166,8 +166,7 @@ fn bridge_small_pieces(prep: &Prepared, pairs: &mut Vec<(u32, u32, f64)>) {
     }
     let max = prep.params.max_gap_m;
     for i in (0..n).filter(|&i| prep.main[i] && size[piece[i]] <= SMALL_PIECE) {
-        let k =
-            std::num::NonZeroUsize::new(size[piece[i]] + 1).unwrap_or(std::num::NonZeroUsize::MIN);
+        let k = crate::cloud::at_least_one(size[piece[i]] + 1);
         let out = prep
             .tree
             .nearest_n::<SquaredEuclidean>(&prep.pts[i], k)
@@ -523,8 +522,7 @@ fn patches(prep: &Prepared, paths: &Paths, levels: Levels) -> (Vec<u32>, Vec<u32
     // alone would break the thin slice of a thick branch into arcs (a point's nearest
     // neighbours are mostly in the bins above and below).
     let link_m = LINK_BINS * levels.bin_m;
-    let link_k =
-        std::num::NonZeroUsize::new(LINK_NEIGHBOURS).unwrap_or(std::num::NonZeroUsize::MIN);
+    let link_k = crate::cloud::at_least_one(LINK_NEIGHBOURS);
     // The reached points near point `i` that come after it (each pair once).
     let linked = |i: usize| {
         prep.tree

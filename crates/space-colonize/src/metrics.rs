@@ -117,8 +117,7 @@ fn distances(points: impl Iterator<Item = Vector3<f64>>, cyls: &[Cyl]) -> Vec<f6
         return points.map(|_| f64::INFINITY).collect();
     }
     let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&midpoints(cyls));
-    let k = std::num::NonZeroUsize::new(CANDIDATE_CYLINDERS.min(cyls.len()))
-        .unwrap_or(std::num::NonZeroUsize::MIN);
+    let k = crate::cloud::at_least_one(CANDIDATE_CYLINDERS.min(cyls.len()));
     points
         .map(|q| {
             tree.nearest_n::<SquaredEuclidean>(&[q.x, q.y, q.z], k)
@@ -151,8 +150,7 @@ pub(crate) fn surface_noise(pts: &[[f64; 3]], skeleton: &Skeleton) -> Option<f64
         return None;
     }
     let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&midpoints(&cyls));
-    let k = std::num::NonZeroUsize::new(CANDIDATE_CYLINDERS.min(cyls.len()))
-        .unwrap_or(std::num::NonZeroUsize::MIN);
+    let k = crate::cloud::at_least_one(CANDIDATE_CYLINDERS.min(cyls.len()));
     let stride = pts.len().div_ceil(NOISE_SAMPLE).max(1);
     let mut signed: Vec<f64> = pts
         .iter()

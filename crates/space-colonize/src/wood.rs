@@ -32,7 +32,7 @@ use kiddo::SquaredEuclidean;
 use nalgebra::{Matrix3, Point3, Vector3};
 use serde::Serialize;
 
-use crate::cloud::{PointTree, check_points, median_spacing};
+use crate::cloud::{PointTree, at_least_one, check_points, median_spacing};
 use crate::error::{ColonizeError, Result};
 
 /// Nearest points a normal is fitted to (the point itself included): the fewest that fix a
@@ -200,15 +200,11 @@ impl WoodConfig {
     }
 }
 
-fn nz(k: usize) -> std::num::NonZeroUsize {
-    std::num::NonZeroUsize::new(k).unwrap_or(std::num::NonZeroUsize::MIN)
-}
-
 /// The unit normals of a point's nearest points at each of [`NORMAL_SCALES`] (the
 /// direction of least spread).
 fn normals_at(pts: &[[f64; 3]], tree: &PointTree, p: &[f64; 3]) -> [Vector3<f64>; 2] {
     // Nearest first, so each scale is a prefix of one query.
-    let nb = tree.nearest_n::<SquaredEuclidean>(p, nz(NORMAL_SCALES[1]));
+    let nb = tree.nearest_n::<SquaredEuclidean>(p, at_least_one(NORMAL_SCALES[1]));
     NORMAL_SCALES.map(|k| {
         let nb = &nb[..k.min(nb.len())];
         let n = nb.len() as f64;
@@ -246,7 +242,7 @@ fn off_axis_shares(
                 tree.nearest_n_within::<SquaredEuclidean>(
                     p,
                     radius2,
-                    nz(COHERENCE_NEIGHBOURS),
+                    at_least_one(COHERENCE_NEIGHBOURS),
                     false,
                 )
                 .iter()
@@ -308,7 +304,7 @@ pub(crate) fn classify(
         .iter()
         .map(|p| {
             let mut v: Vec<f64> = tree
-                .nearest_n::<SquaredEuclidean>(p, nz(NORMAL_NEIGHBOURS))
+                .nearest_n::<SquaredEuclidean>(p, at_least_one(NORMAL_NEIGHBOURS))
                 .iter()
                 .map(|q| raw[q.item as usize])
                 .filter(|s| !s.is_nan())
@@ -337,7 +333,7 @@ fn fill_forks(pts: &[[f64; 3]], tree: &PointTree, share: &[f64], wood: &mut [boo
         .enumerate()
         .filter(|(i, _)| !wood[*i] && !share[*i].is_nan())
         .filter(|(_, p)| {
-            let nb = tree.nearest_n::<SquaredEuclidean>(p, nz(NORMAL_NEIGHBOURS));
+            let nb = tree.nearest_n::<SquaredEuclidean>(p, at_least_one(NORMAL_NEIGHBOURS));
             let w = nb.iter().filter(|q| wood[q.item as usize]).count();
             w as f64 >= FILL_SHARE * nb.len() as f64
         })

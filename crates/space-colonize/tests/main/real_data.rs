@@ -162,14 +162,7 @@ fn the_leaf_off_coffee_tree_keeps_its_wood_when_leaves_are_separated() {
     let split = separate_wood(&points, &WoodConfig::default()).unwrap();
     let kept = split.wood_points() as f64 / points.len() as f64;
     assert!(kept > 0.95, "{kept}");
-    let model = reconstruct(
-        &points,
-        &ColonizeConfig {
-            separate_leaves: true,
-            ..ColonizeConfig::default()
-        },
-    )
-    .unwrap();
+    let model = reconstruct(&points, &crate::wood::leaves_set_aside()).unwrap();
     let m = metrics(&points, &model.skeleton);
     println!("kept {kept:.3}; {m:?}");
     assert!(m.within_2cm > 0.98, "{m:?}");

@@ -9,6 +9,14 @@ use space_colonize::{
 
 use crate::reconstruct::ground_disc;
 
+/// The default reconstruction with the leaves set aside.
+pub(crate) fn leaves_set_aside() -> ColonizeConfig {
+    ColonizeConfig {
+        separate_leaves: true,
+        ..ColonizeConfig::default()
+    }
+}
+
 fn leafy(seed: u64, leaf_points: usize) -> SyntheticConfig {
     SyntheticConfig {
         seed,
@@ -105,14 +113,7 @@ fn leaves_and_ground_are_indexed_in_the_points_given() {
     // Ground first, so the tree's indices shift.
     let mut points = ground.clone();
     points.extend(&tree.points);
-    let model = reconstruct(
-        &points,
-        &ColonizeConfig {
-            separate_leaves: true,
-            ..ColonizeConfig::default()
-        },
-    )
-    .unwrap();
+    let model = reconstruct(&points, &leaves_set_aside()).unwrap();
     let g = model.ground.as_ref().expect("a ground");
     let l = model.leaves.as_ref().expect("leaves");
     let mut seen = vec![0u8; points.len()];
@@ -162,9 +163,8 @@ fn a_cloud_of_nothing_but_leaves_is_an_error_not_a_tree() {
     let err = reconstruct(
         &points,
         &ColonizeConfig {
-            separate_leaves: true,
             remove_ground: false,
-            ..ColonizeConfig::default()
+            ..leaves_set_aside()
         },
     );
     match err {
@@ -178,45 +178,27 @@ fn a_cloud_of_nothing_but_leaves_is_an_error_not_a_tree() {
 #[test]
 fn bad_wood_input_is_named() {
     let tree = leafy(204, 0).generate().unwrap();
-    for share in [0.0, 1.0, -0.1, f64::NAN, f64::INFINITY] {
-        let err = separate_wood(
-            &tree.points,
-            &WoodConfig {
-                max_off_axis_share: share,
-                ..WoodConfig::default()
-            },
-        )
-        .unwrap_err();
-        assert!(
-            matches!(
-                err,
-                ColonizeError::InvalidParameter {
-                    name: "max_off_axis_share",
-                    ..
-                }
-            ),
-            "{share}: {err}"
-        );
-    }
-    for spacing in [0.0, -1.0, f64::NAN] {
-        let err = separate_wood(
-            &tree.points,
-            &WoodConfig {
-                spacing_m: Some(spacing),
-                ..WoodConfig::default()
-            },
-        )
-        .unwrap_err();
-        assert!(
-            matches!(
-                err,
-                ColonizeError::InvalidParameter {
-                    name: "spacing_m",
-                    ..
-                }
-            ),
-            "{spacing}: {err}"
-        );
+    let shares = [0.0, 1.0, -0.1, f64::NAN, f64::INFINITY].map(|max_off_axis_share| {
+        let config = WoodConfig {
+            max_off_axis_share,
+            ..WoodConfig::default()
+        };
+        (config, "max_off_axis_share")
+    });
+    let spacings = [0.0, -1.0, f64::NAN].map(|s| {
+        let config = WoodConfig {
+            spacing_m: Some(s),
+            ..WoodConfig::default()
+        };
+        (config, "spacing_m")
+    });
+    for (config, field) in shares.into_iter().chain(spacings) {
+        match separate_wood(&tree.points, &config) {
+            Err(ColonizeError::InvalidParameter { name, .. }) => {
+                assert_eq!(name, field, "{config:?}");
+            }
+            other => panic!("{config:?}: {:?}", other.map(|s| s.wood_points())),
+        }
     }
     let mut bad = tree.points.clone();
     bad[7].y = f64::NAN;
