@@ -164,8 +164,24 @@ impl Graph {
         }
     }
 
+    /// The child of fork `i` that carries on its parent branch: the one whose direction from
+    /// the fork is nearest the direction into it.
+    fn continuation(&self, i: usize, children: &[Vec<usize>]) -> Option<usize> {
+        let into = (self.pos[i] - self.pos[self.parent[i]?]).try_normalize(1e-12)?;
+        let along = |c: usize| {
+            (self.pos[c] - self.pos[i])
+                .try_normalize(1e-12)
+                .map_or(f64::NEG_INFINITY, |d| d.dot(&into))
+        };
+        children[i]
+            .iter()
+            .copied()
+            .max_by(|&x, &y| along(x).total_cmp(&along(y)))
+    }
+
     /// The points a node and its chain neighbours own, in the plane across the branch at
-    /// the node (coordinates along `u` and `v`, origin at the node).
+    /// the node (coordinates along `u` and `v`, origin at the node). With `skip_forks` a
+    /// neighbour that is a fork gives none (its points belong to two branches).
     fn cross_section(
         &self,
         i: usize,
@@ -173,6 +189,7 @@ impl Graph {
         children: &[Vec<usize>],
         pts: &[[f64; 3]],
         plane: &mut Vec<[f64; 2]>,
+        skip_forks: bool,
     ) -> Option<(Vector3<f64>, Vector3<f64>)> {
         let t = self.tangent(i, children)?;
         let u = t
@@ -188,11 +205,12 @@ impl Graph {
                 plane.push([d.dot(&u), d.dot(&v)]);
             }
         };
+        let own = |n: usize| !(skip_forks && children[n].len() > 1);
         add(i);
-        if let Some(par) = self.parent[i] {
+        if let Some(par) = self.parent[i].filter(|&n| own(n)) {
             add(par);
         }
-        for &c in &children[i] {
+        for &c in children[i].iter().filter(|&&n| own(n)) {
             add(c);
         }
         Some((u, v))
@@ -201,6 +219,11 @@ impl Graph {
     /// Move nodes from index `from` on onto the branch axis: a circle fitted to the points a node and its
     /// neighbours own, in the plane across the branch; where no circle fits (thin branches),
     /// the centroid of those points if `centroid_fallback`, else the node stays.
+    ///
+    /// A fork's points belong to two branches. Without `near_forks`, forks and the nodes
+    /// next to them stay where growth put them; with it, the nodes next to a fork are
+    /// centred on their own points and their other neighbour's, and the fork is put on its
+    /// parent branch's axis (see [`Self::forks_onto_axes`]).
     #[allow(clippy::needless_range_loop)] // `i` is also the node passed to the helpers
     pub(crate) fn centre(
         &mut self,
@@ -209,23 +232,29 @@ impl Graph {
         p: &Parameters,
         from: usize,
         centroid_fallback: bool,
+        near_forks: bool,
     ) {
         for _ in 0..CENTRING_PASSES {
             let a = self.assign(pts, keep);
             let children = self.children();
             let mut moved = self.pos.clone();
             let mut plane: Vec<[f64; 2]> = Vec::new();
+            // The radius of each node's fitted circle this pass (0 where none was fitted).
+            let mut axis_radius = vec![0.0; self.pos.len()];
             for i in from..self.pos.len() {
-                if near_fork(i, &self.parent, &children) {
+                let by_fork = near_fork(i, &self.parent, &children);
+                if by_fork && (!near_forks || children[i].len() > 1) {
                     continue; // forks mix the points of two branches
                 }
-                let Some((u, v)) = self.cross_section(i, &a, &children, pts, &mut plane) else {
+                let Some((u, v)) = self.cross_section(i, &a, &children, pts, &mut plane, by_fork)
+                else {
                     continue;
                 };
                 if plane.is_empty() {
                     continue;
                 }
-                let centre = match fit_circle(&plane).filter(|c| usable(c, p)) {
+                let circle = fit_circle(&plane).filter(|c| usable(c, p));
+                let centre = match circle {
                     Some(c) => c.centre,
                     None if !centroid_fallback => continue,
                     // Too few points or too thin for a circle: the centroid of the cross
@@ -238,9 +267,64 @@ impl Graph {
                         ]
                     }
                 };
+                let reach = circle.map_or(0.0, |c| c.radius_m);
+                if by_fork && !no_farther(&plane, [0.0, 0.0], centre, reach) {
+                    continue;
+                }
+                axis_radius[i] = reach;
                 moved[i] += u * centre[0] + v * centre[1];
             }
+            if near_forks {
+                self.forks_onto_axes(&mut moved, &children, from, &a, pts, &axis_radius);
+            }
             self.pos = moved;
+        }
+    }
+
+    /// Each fork from index `from` on (whose parent and continuing child are not forks)
+    /// onto its parent branch's axis, the line through those two neighbours as `moved`
+    /// holds them: growth splits a branch late, so a fork sits beside the axis toward its
+    /// side branch, and the parent's nodes on either side of it, once centred, kink toward
+    /// it. TreeQSM likewise starts a side branch on its parent's axis.
+    ///
+    /// A fork is not moved farther from the points it and those neighbours own than it
+    /// was, unless it stays within their fitted radius (`axis_radius`) of one: a late
+    /// fork of twigs moved onto a line through two noisy nodes can land in the air.
+    fn forks_onto_axes(
+        &self,
+        moved: &mut [Vector3<f64>],
+        children: &[Vec<usize>],
+        from: usize,
+        a: &Assignment,
+        pts: &[[f64; 3]],
+        axis_radius: &[f64],
+    ) {
+        for i in from..self.pos.len() {
+            if children[i].len() < 2 {
+                continue;
+            }
+            let (Some(par), Some(c)) = (self.parent[i], self.continuation(i, children)) else {
+                continue;
+            };
+            if children[c].len() > 1 || children[par].len() > 1 {
+                continue;
+            }
+            let start = moved[par];
+            let Some(axis) = (moved[c] - start).try_normalize(1e-12) else {
+                continue;
+            };
+            let onto = start + axis * (self.pos[i] - start).dot(&axis);
+            let nearest = |x: Vector3<f64>| {
+                [i, par, c]
+                    .iter()
+                    .flat_map(|&n| a.of(n))
+                    .map(|&q| (Vector3::from(pts[q as usize]) - x).norm())
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let (before, after) = (nearest(self.pos[i]), nearest(onto));
+            if after <= before.max(axis_radius[par].max(axis_radius[c])) {
+                moved[i] = onto;
+            }
         }
     }
 
@@ -258,7 +342,8 @@ impl Graph {
                 if near_fork(i, &self.parent, &children) {
                     continue;
                 }
-                let Some((u, v)) = self.cross_section(i, &a, &children, pts, &mut plane) else {
+                let Some((u, v)) = self.cross_section(i, &a, &children, pts, &mut plane, false)
+                else {
                     continue;
                 };
                 if let Some(c) = centre_with_radius(&plane, radius_m[i]) {
@@ -286,7 +371,7 @@ impl Graph {
                 if children[i].len() > 1 {
                     return None;
                 }
-                let (u, v) = self.cross_section(i, &a, &children, pts, &mut plane)?;
+                let (u, v) = self.cross_section(i, &a, &children, pts, &mut plane, false)?;
                 let fit = fit_circle(&plane).filter(|c| usable(c, p)).filter(|c| {
                     c.points >= RELIABLE_FIT_POINTS
                         && c.rms_m < RELIABLE_FIT_RMS_PER_RADIUS * c.radius_m
@@ -537,6 +622,19 @@ fn robust_taper(samples: &[(f64, f64)]) -> Option<(f64, f64)> {
     } else {
         Some((a, b))
     }
+}
+
+/// Whether moving a node from `from` to `to` (in its cross-section's plane, among the
+/// points `plane`) leaves it no farther from its nearest point than it was, or within
+/// `reach` of one (the radius of a fitted circle: an axis is a radius from its points).
+fn no_farther(plane: &[[f64; 2]], from: [f64; 2], to: [f64; 2], reach: f64) -> bool {
+    let nearest = |c: [f64; 2]| {
+        plane
+            .iter()
+            .map(|q| (q[0] - c[0]).hypot(q[1] - c[1]))
+            .fold(f64::INFINITY, f64::min)
+    };
+    nearest(to) <= nearest(from).max(reach)
 }
 
 /// True for a fork and for the nodes next to one: their cross-sections mix branches.
