@@ -100,10 +100,10 @@ struct Args {
     /// --separate-leaves
     #[arg(long = "out-leaves", value_name = "FILE", requires = "separate_leaves")]
     leaves: Option<PathBuf>,
-    /// Centre the nodes next to forks too and put forks on their parent's axis (full scans
-    /// grown by colonization): nearer the points, a little longer and fuller
-    #[arg(long = "centre-forks")]
-    centre_forks: bool,
+    /// Leave forks and the nodes next to them where growth put them (by default, in full
+    /// scans grown by colonization, they are centred and forks put on their parent's axis)
+    #[arg(long = "forks-as-grown")]
+    forks_as_grown: bool,
     /// The cloud's up axis: `z` (the default: the tree frame), `-y` (a level depth
     /// camera's own frame, y down, as `capture_to_cloud` writes it), `y` (Y-up exports),
     /// `x`, `-x` or `-z`. The outputs are turned back into the cloud's frame
@@ -233,7 +233,7 @@ fn run(
         growth: args.growth,
         remove_ground: !args.keep_ground,
         separate_leaves: args.separate_leaves,
-        centre_forks: args.centre_forks,
+        centre_forks: !args.forks_as_grown,
         camera_m,
         ..ColonizeConfig::default()
     };

@@ -167,12 +167,13 @@ pub struct ColonizeConfig {
     pub centring: bool,
     /// Also centre the nodes next to forks (on their own side's points) and put each fork
     /// on its parent branch's axis, in full scans grown by colonization (with
-    /// [`Self::centring`]). Growth splits branches late, so without it a fork sits beside
-    /// the axis toward its side branch and the parts by it kink toward it. The model is
-    /// then nearer its points and the true axes but a little longer and fuller: on the
-    /// leaf-off coffee tree 2.57 mm mean point-to-surface against 2.97, +2.6 % length and
-    /// +5.6 % volume against TreeQSM's against +0.7 % and +3.5 % (`docs/validation.md`,
-    /// "Centring by forks"). Default false until the extra volume is understood.
+    /// [`Self::centring`]); a single radius fit far off the pipe model is then not an
+    /// anchor. Growth splits branches late, so without it a fork sits beside the axis
+    /// toward its side branch and the parts by it kink toward it. On the leaf-off coffee
+    /// tree 2.65 mm mean point-to-surface against 2.97 mm without, length +2.4 % and
+    /// volume +3.0 % against TreeQSM's (+0.7 % and +3.4 % without); on synthetic trees the
+    /// axes 7.7 mm from the truth against 9.4 mm (`docs/validation.md`, "Centring by
+    /// forks"). Default true; false gives the model as before.
     pub centre_forks: bool,
     /// Look for a ground plane under the tree (the lowest surface that spreads sideways,
     /// see [`crate::Ground`]) and set its points aside before growth. Default true; the
@@ -213,7 +214,7 @@ impl Default for ColonizeConfig {
             pipe_exponent: PIPE_EXPONENT,
             radius_fits: true,
             centring: true,
-            centre_forks: false,
+            centre_forks: true,
             remove_ground: true,
             separate_leaves: false,
             smoothing_iterations: 3,

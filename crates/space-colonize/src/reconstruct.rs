@@ -237,7 +237,7 @@ pub fn reconstruct_with_progress(
         parent: g.parents.clone(),
         bridge: g.bridge.clone(),
     };
-    // Nodes by forks, when asked for, are centred in full scans grown by colonization, in
+    // Nodes by forks (by default) are centred in full scans grown by colonization, in
     // the first refinement only (in the twig pass's short twigs it drew model parts off
     // the cloud). Level-set nodes are already patch centres (centring them there cost
     // tree13 and Paris 2 points of model near the cloud), and in one-sided views the half
@@ -277,7 +277,12 @@ pub fn reconstruct_with_progress(
         let fits = config
             .radius_fits
             .then(|| graph.fit_radii(&prep.pts, &prep.main, &p));
-        graph.to_skeleton(p.pipe_exponent, p.trunk_radius_m, fits.as_deref())
+        graph.to_skeleton(
+            p.pipe_exponent,
+            p.trunk_radius_m,
+            fits.as_deref(),
+            near_forks.then_some(crate::refine::MAX_FIT_PER_PIPE_MEDIAN),
+        )
     };
     let (mut skeleton, mut fits_used) = radii(&graph)?;
     // Twigs shorter than the kill distance were never grown: their points sit off the

@@ -54,6 +54,15 @@ const TAUBIN_MU: f64 = -0.53;
 /// fits to be used: on the leaf-off coffee tree the median is 1.3; on the leafy
 /// `adtree/tree13.xyz` 5.8 (circle fits to leaf clumps).
 const MAX_FIT_PIPE_RATIO: f64 = 2.0;
+/// With forks centred, a node's fitted radius is used only up to this many times the pipe
+/// model's there scaled by the median ratio of fits to the pipe model; beyond, the node
+/// takes its parent's ratio. A side branch's first nodes, once its fork sits on the
+/// parent's axis, can fit circles through sparse points of several twigs around an empty
+/// centre (on the coffee tree a 14 cm twig 1.7–2.7 cm thick on a 1.0 cm parent). Chosen
+/// between 2, 3 and 4 on the coffee tree (volume +1 %, +1 %, +3 % against TreeQSM's, mean
+/// point-to-surface 2.86, 2.76, 2.65 mm); at 4 the synthetic trees of the evaluation
+/// are unchanged (axis error 7.60 → 7.65 mm, volume error 0.234 → 0.229).
+pub(crate) const MAX_FIT_PER_PIPE_MEDIAN: f64 = 4.0;
 /// Centring passes (the assignment of points to nodes is redone between them).
 const CENTRING_PASSES: usize = 4;
 
@@ -525,12 +534,15 @@ impl Graph {
     /// follow the pipe model scaled from the nearest anchor toward the root. Fits whose
     /// median departs from the pipe model by more than [`MAX_FIT_PIPE_RATIO`] are not
     /// used: they measure something else than wood (the leaf clumps of a crown in leaf).
+    /// With `max_fit_per_pipe_median` k, a single fit more than k times that median ratio
+    /// off the pipe model is not an anchor (see [`MAX_FIT_PER_PIPE_MEDIAN`]).
     /// Returns the skeleton and whether the fits were used.
     pub(crate) fn to_skeleton(
         &self,
         exponent: f64,
         base_radius_m: f64,
         fits: Option<&[Option<f64>]>,
+        max_fit_per_pipe_median: Option<f64>,
     ) -> Result<(Skeleton, bool)> {
         let flat = Skeleton::new(
             self.pos
@@ -569,11 +581,20 @@ impl Graph {
         });
         let used = fits.is_some();
         if let Some(fits) = fits {
+            let largest = max_fit_per_pipe_median.map_or(f64::INFINITY, |k| {
+                let mut ratios: Vec<f64> = fits
+                    .iter()
+                    .zip(&pipe)
+                    .filter_map(|(r, &q)| r.filter(|_| q > 0.0).map(|r| r / q))
+                    .collect();
+                ratios.sort_by(f64::total_cmp);
+                k * ratios.get(ratios.len() / 2).copied().unwrap_or(1.0)
+            });
             let mut ratio = vec![1.0; pipe.len()];
             for &i in flat.topological_order() {
                 let inherited = self.parent[i].map_or(1.0, |p| ratio[p]);
                 ratio[i] = match fits.get(i).copied().flatten() {
-                    Some(r) if pipe[i] > 0.0 => r / pipe[i],
+                    Some(r) if pipe[i] > 0.0 && r / pipe[i] <= largest => r / pipe[i],
                     _ => inherited,
                 };
                 radius[i] = pipe[i] * ratio[i];

@@ -23,17 +23,40 @@ fn trunk_with_stub() -> Graph {
 #[test]
 fn fits_far_from_the_pipe_model_are_not_used() {
     let g = trunk_with_stub();
-    let (pipe, _) = g.to_skeleton(2.5, 0.05, None).unwrap();
+    let (pipe, _) = g.to_skeleton(2.5, 0.05, None, None).unwrap();
     let scaled = |k: f64| -> Vec<Option<f64>> {
         pipe.nodes().iter().map(|n| Some(k * n.radius_m)).collect()
     };
-    let (near, used) = g.to_skeleton(2.5, 0.05, Some(&scaled(1.3))).unwrap();
+    let (near, used) = g.to_skeleton(2.5, 0.05, Some(&scaled(1.3)), None).unwrap();
     assert!(used);
     assert!((near.nodes()[3].radius_m / pipe.nodes()[3].radius_m - 1.3).abs() < 1e-9);
     // Five times the pipe radius at the median: leaf clumps, not wood.
-    let (far, used) = g.to_skeleton(2.5, 0.05, Some(&scaled(5.0))).unwrap();
+    let (far, used) = g.to_skeleton(2.5, 0.05, Some(&scaled(5.0)), None).unwrap();
     assert!(!used);
     assert_eq!(far, pipe);
+}
+
+#[test]
+fn one_fit_far_off_the_pipe_model_is_no_anchor_when_asked() {
+    let g = trunk_with_stub();
+    let (pipe, _) = g.to_skeleton(2.5, 0.05, None, None).unwrap();
+    // Every node measured at 1.3 times the pipe model, the stub's tip at 10 times.
+    let fits: Vec<Option<f64>> = pipe
+        .nodes()
+        .iter()
+        .map(|n| Some(if n.id == 12 { 10.0 } else { 1.3 } * n.radius_m))
+        .collect();
+    let ratio = |sk: &Skeleton, i: usize| sk.nodes()[i].radius_m / pipe.nodes()[i].radius_m;
+    let (taken, _) = g.to_skeleton(2.5, 0.05, Some(&fits), None).unwrap();
+    assert!((ratio(&taken, 12) - 10.0).abs() < 1e-9);
+    let (bounded, used) = g
+        .to_skeleton(2.5, 0.05, Some(&fits), Some(MAX_FIT_PER_PIPE_MEDIAN))
+        .unwrap();
+    assert!(used);
+    // The tip takes its parent's ratio; every other node keeps its fit.
+    assert!((ratio(&bounded, 12) - 1.3).abs() < 1e-9);
+    assert!((ratio(&bounded, 11) - 1.3).abs() < 1e-9);
+    assert!((ratio(&bounded, 3) - 1.3).abs() < 1e-9);
 }
 
 #[test]
@@ -46,7 +69,7 @@ fn twig_ends_in_the_air_are_found_from_their_first_far_segment() {
     g.pos.push(Vector3::new(0.14, 0.0, 0.5));
     g.parent.push(Some(13));
     g.bridge.extend([false, false]);
-    let (sk, _) = g.to_skeleton(2.5, 0.02, None).unwrap();
+    let (sk, _) = g.to_skeleton(2.5, 0.02, None, None).unwrap();
     let mut pts: Vec<[f64; 3]> = (0..=100).map(|k| [0.0, 0.0, 0.01 * f64::from(k)]).collect();
     pts.extend((0..=6).map(|k| [0.01 * f64::from(k), 0.0, 0.5]));
     let tree: PointTree = PointTree::new_from_slice(&pts);
@@ -71,14 +94,14 @@ fn twig_ends_in_the_air_are_found_from_their_first_far_segment() {
     for v in [13, 14] {
         assert!((g.pos[v] - Vector3::new(0.06 + r[v], 0.0, 0.5)).norm() < 1e-12);
     }
-    let (moved, _) = g.to_skeleton(2.5, 0.02, None).unwrap();
+    let (moved, _) = g.to_skeleton(2.5, 0.02, None, None).unwrap();
     assert!(far_tails(&moved, &tree, 0.01).is_empty());
 }
 
 #[test]
 fn a_stub_is_kept_only_when_a_point_needs_it() {
     let g = trunk_with_stub();
-    let (sk, _) = g.to_skeleton(2.5, 0.02, None).unwrap();
+    let (sk, _) = g.to_skeleton(2.5, 0.02, None, None).unwrap();
     let stubs = twig_stubs(&sk, 0.1);
     assert_eq!(stubs, vec![vec![11, 12]]);
     let trunk_r = sk.nodes()[5].radius_m;

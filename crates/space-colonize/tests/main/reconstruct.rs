@@ -390,7 +390,14 @@ fn the_default_grows_by_level_sets_only_where_colonization_runs_through_the_air(
             fa.model_near_cloud > fc.model_near_cloud + 0.03,
             "{fa:?} {fc:?}"
         );
-        assert!(fa.mean_distance_m < fc.mean_distance_m, "{fa:?} {fc:?}");
+        // Since forks are centred, colonization's surface is nearer the points here (seed
+        // 22: 1.67 against level sets' 1.85 mm, 99.98 against 99.90 % within 2 cm); what
+        // it loses is model drawn through the air, which is what the choice is made on.
+        assert!(
+            fa.mean_distance_m < 1.2 * fc.mean_distance_m,
+            "{fa:?} {fc:?}"
+        );
+        assert!(fa.within_2cm >= fc.within_2cm - 0.002, "{fa:?} {fc:?}");
     }
 }
 
@@ -674,10 +681,10 @@ fn a_noisy_scan_is_measured_and_its_volume_not_trusted() {
 }
 
 /// Growth splits a branch late, so a fork sits beside the axis and the nodes next to it
-/// stay there; with `centre_forks` they go onto their own branch's axis and the fork onto
-/// its parent's. On bare synthetic trees (seeds 40 and 41, 20,000 points, 1 mm noise) the
-/// axes come nearer the true skeleton and the surface nearer the points; the option is
-/// off by default, and one-sided views are left as they were.
+/// stayed there; with `centre_forks` (the default) they go onto their own branch's axis and
+/// the fork onto its parent's. On bare synthetic trees (seeds 40 and 41, 20,000 points,
+/// 1 mm noise) the axes come nearer the true skeleton and the surface nearer the points
+/// than with the forks as grown.
 #[test]
 fn centring_by_forks_brings_axes_nearer_the_truth() {
     for seed in [40, 41] {
@@ -688,12 +695,12 @@ fn centring_by_forks_brings_axes_nearer_the_truth() {
         }
         .generate()
         .unwrap();
-        let plain = reconstruct(&t.points, &ColonizeConfig::default()).unwrap();
-        let forks = ColonizeConfig {
-            centre_forks: true,
+        let as_grown = ColonizeConfig {
+            centre_forks: false,
             ..ColonizeConfig::default()
         };
-        let centred = reconstruct(&t.points, &forks).unwrap();
+        let plain = reconstruct(&t.points, &as_grown).unwrap();
+        let centred = reconstruct(&t.points, &ColonizeConfig::default()).unwrap();
         let (ep, ec) = (
             skeleton_error(&plain.skeleton, &t.skeleton),
             skeleton_error(&centred.skeleton, &t.skeleton),
