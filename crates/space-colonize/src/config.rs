@@ -170,9 +170,9 @@ pub struct ColonizeConfig {
     /// [`Self::centring`]); a single radius fit far off the pipe model is then not an
     /// anchor. Growth splits branches late, so without it a fork sits beside the axis
     /// toward its side branch and the parts by it kink toward it. On the leaf-off coffee
-    /// tree 2.65 mm mean point-to-surface against 2.97 mm without, length +2.4 % and
-    /// volume +3.0 % against TreeQSM's (+0.7 % and +3.4 % without); on synthetic trees the
-    /// axes 7.7 mm from the truth against 9.4 mm (`docs/validation.md`, "Centring by
+    /// tree 2.60 mm mean point-to-surface against 2.97 mm without, length +2.3 % and
+    /// volume +2.5 % against TreeQSM's (+0.7 % and +3.4 % without); on synthetic trees the
+    /// axes 7.1 mm from the truth against 9.4 mm (`docs/validation.md`, "Centring by
     /// forks"). Default true; false gives the model as before.
     pub centre_forks: bool,
     /// Look for a ground plane under the tree (the lowest surface that spreads sideways,
