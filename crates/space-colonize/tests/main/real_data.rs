@@ -45,14 +45,16 @@ fn coffee_tree_is_close_to_its_cloud() {
         "{:?}",
         model.growth
     );
-    // Figures in docs/validation.md; bounds a little looser than measured.
-    assert!(m.mean_distance_m < 0.0031, "{m:?}");
+    // Figures in docs/validation.md; bounds a little looser than measured (2.60 mm since
+    // forks are centred, 2.97 mm before).
+    assert!(m.mean_distance_m < 0.00275, "{m:?}");
     assert!(model.growth.radius_fits_used);
     assert!(m.within_2cm > 0.99, "{m:?}");
-    // The issue's goals against TreeQSM's published model of this cloud: length and
-    // volume within 10 %, every model part within 2 cm of the cloud.
-    assert!((m.total_length_m / 32.8 - 1.0).abs() < 0.1, "{m:?}");
-    assert!((m.volume_l / 21.6 - 1.0).abs() < 0.1, "{m:?}");
+    // Issue 22's goals against TreeQSM's published model of this cloud: length and
+    // volume within 5 % (+2.3 % and +2.5 % measured), every model part within 2 cm of the
+    // cloud.
+    assert!((m.total_length_m / 32.8 - 1.0).abs() < 0.05, "{m:?}");
+    assert!((m.volume_l / 21.6 - 1.0).abs() < 0.05, "{m:?}");
     assert!(m.length_near_cloud > 0.9999, "{m:?}");
     assert!(m.max_model_gap_m <= space_colonize::NEAR_CLOUD_M, "{m:?}");
 }
