@@ -584,28 +584,23 @@ impl Graph {
             .map(|&w| (scale * w).powf(1.0 / exponent))
             .collect();
         let mut radius = pipe.clone();
-        let fits = fits.filter(|f| {
+        // The median ratio of fitted radii to the pipe model's.
+        let median = fits.and_then(|f| {
             let mut ratios: Vec<f64> = f
                 .iter()
                 .zip(&pipe)
                 .filter_map(|(r, &q)| r.filter(|_| q > 0.0).map(|r| r / q))
                 .collect();
             ratios.sort_by(f64::total_cmp);
-            ratios
-                .get(ratios.len() / 2)
-                .is_some_and(|&m| (1.0 / MAX_FIT_PIPE_RATIO..=MAX_FIT_PIPE_RATIO).contains(&m))
+            ratios.get(ratios.len() / 2).copied()
+        });
+        let fits = fits.filter(|_| {
+            median.is_some_and(|m| (1.0 / MAX_FIT_PIPE_RATIO..=MAX_FIT_PIPE_RATIO).contains(&m))
         });
         let used = fits.is_some();
         if let Some(fits) = fits {
-            let largest = max_fit_per_pipe_median.map_or(f64::INFINITY, |k| {
-                let mut ratios: Vec<f64> = fits
-                    .iter()
-                    .zip(&pipe)
-                    .filter_map(|(r, &q)| r.filter(|_| q > 0.0).map(|r| r / q))
-                    .collect();
-                ratios.sort_by(f64::total_cmp);
-                k * ratios.get(ratios.len() / 2).copied().unwrap_or(1.0)
-            });
+            let largest =
+                max_fit_per_pipe_median.map_or(f64::INFINITY, |k| k * median.unwrap_or(1.0));
             let mut ratio = vec![1.0; pipe.len()];
             for &i in flat.topological_order() {
                 let inherited = self.parent[i].map_or(1.0, |p| ratio[p]);
