@@ -282,7 +282,7 @@ impl Graph {
                     }
                 };
                 let reach = circle.map_or(0.0, |c| c.radius_m);
-                if by_fork && !no_farther(&plane, [0.0, 0.0], centre, reach) {
+                if by_fork && !no_farther(&plane, centre, reach) {
                     continue;
                 }
                 axis_radius[i] = reach;
@@ -297,9 +297,10 @@ impl Graph {
 
     /// Each fork from index `from` on onto its parent branch's axis, the line through its
     /// nearest chain nodes before and after it along that branch (past at most
-    /// [`FORK_WALK_STEPS`] neighbouring forks each way) as `moved` holds them: growth splits a branch late, so a fork sits beside the axis toward its
-    /// side branch, and the parent's nodes on either side of it, once centred, kink toward
-    /// it. TreeQSM likewise starts a side branch on its parent's axis.
+    /// [`FORK_WALK_STEPS`] neighbouring forks each way) as `moved` holds them: growth
+    /// splits a branch late, so a fork sits beside the axis toward its side branch, and the
+    /// parent's nodes on either side of it, once centred, kink toward it. TreeQSM likewise
+    /// starts a side branch on its parent's axis.
     ///
     /// A fork is not moved farther from the points it and those neighbours own than it
     /// was, unless it stays within their fitted radius (`axis_radius`) of one: a late
@@ -656,17 +657,17 @@ fn robust_taper(samples: &[(f64, f64)]) -> Option<(f64, f64)> {
     }
 }
 
-/// Whether moving a node from `from` to `to` (in its cross-section's plane, among the
+/// Whether moving a node from the origin of its cross-section's plane to `to` (among the
 /// points `plane`) leaves it no farther from its nearest point than it was, or within
 /// `reach` of one (the radius of a fitted circle: an axis is a radius from its points).
-fn no_farther(plane: &[[f64; 2]], from: [f64; 2], to: [f64; 2], reach: f64) -> bool {
+fn no_farther(plane: &[[f64; 2]], to: [f64; 2], reach: f64) -> bool {
     let nearest = |c: [f64; 2]| {
         plane
             .iter()
             .map(|q| (q[0] - c[0]).hypot(q[1] - c[1]))
             .fold(f64::INFINITY, f64::min)
     };
-    nearest(to) <= nearest(from).max(reach)
+    nearest(to) <= nearest([0.0, 0.0]).max(reach)
 }
 
 /// True for a fork and for the nodes next to one: their cross-sections mix branches.
