@@ -102,6 +102,32 @@ fn bench(c: &mut Criterion) {
             })
         },
     );
+
+    // The real release clip of issue 19 re-created: one 14 px marker at 240 fps blurring into
+    // a streak 2.5 widths long and jumping 2.5 widths a frame, then ringing down. One marker
+    // in a whole frame: what keeping the last frame for the streaks costs shows here.
+    let scene = StressScene::new(&StressConfig::condition(
+        Condition::Release240,
+        EVALUATION_SEEDS.start,
+    ))
+    .expect("valid preset");
+    let frames: Vec<_> = (0..scene.frames())
+        .map(|f| scene.frame(f).expect("in range"))
+        .collect();
+    let marker_frames = (frames.len() - 1) * scene.markers().len();
+    group.bench_function(
+        format!("tracker_release_240fps_sequence_{marker_frames}_marker_frames"),
+        |b| {
+            b.iter(|| {
+                let mut t = Tracker::new(TrackerConfig::default(), &frames[0], None, scene.inits())
+                    .expect("valid");
+                for f in &frames[1..] {
+                    t.update(f, None).expect("same size");
+                }
+                black_box(t.frames())
+            })
+        },
+    );
     group.finish();
 }
 

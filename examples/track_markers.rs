@@ -230,7 +230,7 @@ fn track_folder(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         decode_s += t.elapsed().as_secs_f64();
         let t = Instant::now();
         tracker
-            .update(&frame, None)
+            .update_owned(frame, None)
             .map_err(|e| format!("{}: {e}", path.display()))?;
         track_s += t.elapsed().as_secs_f64();
         if (k + 1) % 50 == 0 {

@@ -6,8 +6,12 @@ use super::*;
 /// Share of the pixels of `holds` whose colour changed since `previous` by more than
 /// [`CHANGED_LEVEL`] in some channel: a marker that just arrived changed its pixels; a
 /// static look-alike did not.
-pub(super) fn changed_share(frame: &RgbImage, previous: &RgbImage, holds: PixelRect) -> f64 {
+/// Without the previous frame over `holds`, everything changed.
+pub(super) fn changed_share(frame: &RgbImage, previous: &PreviousFrame, holds: PixelRect) -> f64 {
     let r = holds.intersect(&image_rect(frame.width(), frame.height()));
+    let Some(previous) = previous.covering(r) else {
+        return 1.0;
+    };
     if r.is_empty() || previous.dimensions() != frame.dimensions() {
         return 1.0;
     }
@@ -31,15 +35,15 @@ pub(super) fn changed_share(frame: &RgbImage, previous: &RgbImage, holds: PixelR
 }
 
 /// The weights of marker `m`'s model over `rect`, with its mask, depth gate and the `masked`
-/// rectangles, and its streak weights against the `previous` frame (recovering tracker, colour
-/// models).
+/// rectangles, and its streak weights against the `previous` frame where it was kept over
+/// `rect` (recovering tracker, colour models).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fill(
     region: &mut Region,
     config: &TrackerConfig,
     m: &MarkerState,
     frame: &RgbImage,
-    previous: Option<&RgbImage>,
+    previous: Option<&PreviousFrame>,
     depth: Option<&DepthView<'_>>,
     rect: PixelRect,
     masked: &[PixelRect],
@@ -49,8 +53,10 @@ pub(super) fn fill(
         _ => None,
     };
     let colour_model = !matches!(config.model, AppearanceModel::Gray { .. });
+    // Where the last frame was not kept over the region, no streak weights.
     let streak = previous
         .filter(|_| config.recovery && colour_model)
+        .and_then(|p| p.covering(rect))
         .map(|previous| Streak {
             previous,
             colour: m.colour,

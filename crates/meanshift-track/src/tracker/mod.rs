@@ -71,6 +71,7 @@ mod frame;
 mod init;
 mod joint;
 mod passes;
+mod previous;
 mod state;
 mod swaps;
 
@@ -81,6 +82,7 @@ use blobs::*;
 pub use config::{MotionModel, TrackerConfig, WindowMode};
 use joint::*;
 use passes::{Again, Flag, Went};
+use previous::PreviousFrame;
 use state::*;
 pub use track::{DepthView, MarkerInit, Observation, Track, TrackStatus, TrackSummary};
 
@@ -306,7 +308,7 @@ const MAX_CANDIDATES: usize = 16;
 /// Share of the velocity kept per frame without a measurement: a swing turns back.
 const COAST_VELOCITY_DECAY: f64 = 0.8;
 /// Windows beyond the farthest a colour marker was tracked from its home within which it
-/// is taken to stay (see [`MarkerState::hold_in_frame`]).
+/// is taken to stay (see [`MarkerState::held_in_frame`]).
 const HOLD_REACH_WINDOWS: f64 = 1.0;
 
 /// What a marker looked like on the first frame, as the measurements see it.
@@ -432,8 +434,8 @@ pub struct Tracker {
     labeler: Labeler,
     /// Patch scratch for the context correlation.
     patch: Vec<f32>,
-    /// The last frame given: the background of this frame's streaks.
-    previous: Option<RgbImage>,
+    /// The last frame given, where this frame reads it: the background of its streaks.
+    previous: Option<PreviousFrame>,
     /// Per pair of markers (row-major `n x n`), how alike they have moved.
     coherence: Vec<Coherence>,
 }
@@ -563,7 +565,7 @@ impl Tracker {
             // are spared a copy of every frame.
             let gray = matches!(tracker.config.model, AppearanceModel::Gray { .. });
             if !gray {
-                tracker.previous = Some(first_frame.clone());
+                tracker.previous = Some(PreviousFrame::whole(first_frame));
             }
         }
         Ok(tracker)
@@ -591,14 +593,61 @@ impl Tracker {
     /// frame (or depth map) differs in size from the first frame. The tracker is unchanged
     /// by a failed call.
     pub fn update(&mut self, frame: &RgbImage, depth: Option<DepthView<'_>>) -> Result<()> {
+        self.track_into(frame, depth)?;
+        if self.previous.is_some() {
+            let regions = self.next_regions();
+            if let Some(p) = self.previous.as_mut() {
+                p.keep(frame, &regions);
+            }
+        }
+        Ok(())
+    }
+
+    /// [`Tracker::update`] with a frame the tracker may keep: a colour model's tracker needs
+    /// the last frame's pixels (the background of a blurred marker's streak), which
+    /// [`Tracker::update`] copies where the next frame will read them; given the frame, it
+    /// keeps it whole instead. For a caller that decodes every frame anyway (a
+    /// 512x424 frame's copy costs about as much as tracking one marker in it).
+    ///
+    /// # Errors
+    /// As [`Tracker::update`].
+    ///
+    /// # Examples
+    /// ```
+    /// use meanshift_track::{MarkerInit, PixelRect, Tracker, TrackerConfig};
+    /// let frame = |x: u32| {
+    ///     image::RgbImage::from_fn(80, 60, move |px, py| {
+    ///         let on = px.abs_diff(x) < 5 && py.abs_diff(30) < 5;
+    ///         image::Rgb(if on { [220, 30, 30] } else { [40, 90, 40] })
+    ///     })
+    /// };
+    /// let marker = MarkerInit { id: "A".into(), window: PixelRect::new(15, 25, 11, 11) };
+    /// let mut tracker = Tracker::new(TrackerConfig::default(), &frame(20), None, &[marker])?;
+    /// for x in [23, 26, 29] {
+    ///     tracker.update_owned(frame(x), None)?;
+    /// }
+    /// let last = tracker.tracks()[0].observations.last().expect("3 frames");
+    /// let center = last.center.expect("found");
+    /// assert!((center.x - 29.0).abs() < 1.0, "{center}");
+    /// # Ok::<(), meanshift_track::TrackError>(())
+    /// ```
+    pub fn update_owned(&mut self, frame: RgbImage, depth: Option<DepthView<'_>>) -> Result<()> {
+        self.track_into(&frame, depth)?;
+        if self.previous.is_some() {
+            self.previous = Some(PreviousFrame::owned(frame));
+        }
+        Ok(())
+    }
+
+    /// Everything [`Tracker::update`] does but keeping the frame.
+    fn track_into(&mut self, frame: &RgbImage, depth: Option<DepthView<'_>>) -> Result<()> {
         self.check_frame(frame)?;
         self.check_depth(depth.as_ref())?;
         let depth = depth.as_ref();
         let n = self.markers.len();
         let (width, height) = (self.width, self.height);
         for m in &mut self.markers {
-            m.predict(&self.config);
-            m.hold_in_frame((width, height));
+            m.predict(&self.config, (width, height));
             m.gate_var = m.filter.innovation_var(MEASUREMENT_PX);
         }
         let predictions: Vec<Point2<f64>> = self
@@ -647,9 +696,6 @@ impl Tracker {
         self.record(frame, depth, results, &merged);
         self.learn_parked();
         self.repair_swaps();
-        if let Some(p) = self.previous.as_mut() {
-            p.copy_from_slice(frame);
-        }
         Ok(())
     }
 

@@ -18,7 +18,6 @@ impl Tracker {
         let frame_side = f64::from(self.width.max(self.height));
         let m = &self.markers[i];
         let pred = predictions[i];
-        let (w, h) = m.size;
         let side = window_px(m);
         let wide = m.gate_var + manoeuvre_var(&self.config, side, m.misses, frame_side);
         let found: Vec<Measured>;
@@ -29,7 +28,7 @@ impl Tracker {
                 .clamp(0.25 * side, 1.5 * side);
             found = template_candidates(t, m, frame, pred, radius, 4, &mut self.patch);
         } else {
-            let region = PixelRect::centered_at(pred, w, h).grown(w, h);
+            let region = quick_region(m, pred);
             let masks = m.static_masks(region, pred);
             fill(
                 &mut self.region,
@@ -254,11 +253,17 @@ impl Tracker {
     /// whole frame. The filter takes the manoeuvre only if a candidate is taken.
     fn gate(&self, i: usize) -> Gate {
         let m = &self.markers[i];
+        self.gate_of(m, &m.filter, m.gate_var)
+    }
+
+    /// The search gate of marker `m` predicted to `filter`, whose normal gate has variance
+    /// `gate_var` (see [`Tracker::gate`]).
+    fn gate_of(&self, m: &MarkerState, filter: &Kalman, gate_var: f64) -> Gate {
         let (width, height) = (self.width, self.height);
         let frame_side = f64::from(width.max(height));
         let side = window_px(m);
-        let wide_var = m.gate_var + manoeuvre_var(&self.config, side, m.misses, frame_side);
-        let center = clamp_into(m.filter.position, width, height);
+        let wide_var = gate_var + manoeuvre_var(&self.config, side, m.misses, frame_side);
+        let center = clamp_into(filter.position, width, height);
         // A marker that has left the frame comes back across the border near where it
         // left: its gate is the normal one around the border point, widened by a window
         // per missed frame, not the whole frame (where it would take whatever looks like
@@ -271,9 +276,9 @@ impl Tracker {
                 .min(f64::from(width) - c.x)
                 .min(f64::from(height) - c.y)
         };
-        let outside = (m.filter.position - center).norm() > 0.5 * side
-            && border_gap < BORDER_WINDOWS * side + m.filter.velocity.norm();
-        let border_px = (GATE_CHI2 * m.gate_var).sqrt() + (m.misses as f64 + 1.0) * side;
+        let outside = (filter.position - center).norm() > 0.5 * side
+            && border_gap < BORDER_WINDOWS * side + filter.velocity.norm();
+        let border_px = (GATE_CHI2 * gate_var).sqrt() + (m.misses as f64 + 1.0) * side;
         let radius_px = if outside {
             (GATE_CHI2 * wide_var).sqrt().min(border_px)
         } else {
@@ -285,6 +290,23 @@ impl Tracker {
             outside,
             radius_px,
         }
+    }
+
+    /// Where the next frame's passes may weigh colour marker pixels (each marker's quick
+    /// region about its prediction and its detection region about its gate, from the
+    /// filters as the next frame will predict them): the parts of this frame to keep as
+    /// that frame's streak background.
+    pub(super) fn next_regions(&self) -> Vec<PixelRect> {
+        let size = (self.width, self.height);
+        let mut regions = Vec::with_capacity(2 * self.markers.len());
+        for m in self.markers.iter().filter(|m| m.template.is_none()) {
+            let filter = m.predicted(&self.config, size);
+            let gate_var = filter.innovation_var(MEASUREMENT_PX);
+            let pred = clamp_into(filter.position, self.width, self.height);
+            regions.push(quick_region(m, pred));
+            regions.push(detection_region(m, &self.gate_of(m, &filter, gate_var)));
+        }
+        regions
     }
 
     /// Marker `i`'s scored candidates in its gate (the quick pass's own measurement among
@@ -311,9 +333,7 @@ impl Tracker {
                 &mut self.patch,
             ));
         } else {
-            let (w, h) = m.size;
-            let reach = gate.radius_px.ceil() as i32 + w.max(h);
-            let region = PixelRect::centered_at(gate.center, w, h).grown(reach, reach);
+            let region = detection_region(m, &gate);
             let mut masks: Vec<PixelRect> = if self.config.exclusive {
                 claimed.iter().map(|c| c.1).collect()
             } else {
@@ -608,6 +628,19 @@ impl Confined {
         let d = p - self.center;
         d.norm() <= self.radius_px && self.along.is_none_or(|u| d.dot(&u) >= 0.0)
     }
+}
+
+/// The region the quick pass weighs for marker `m` predicted at `pred`: 3x3 windows.
+fn quick_region(m: &MarkerState, pred: Point2<f64>) -> PixelRect {
+    let (w, h) = m.size;
+    PixelRect::centered_at(pred, w, h).grown(w, h)
+}
+
+/// The region detection weighs for marker `m` in `gate`: the gate and a window more.
+fn detection_region(m: &MarkerState, gate: &Gate) -> PixelRect {
+    let (w, h) = m.size;
+    let reach = gate.radius_px.ceil() as i32 + w.max(h);
+    PixelRect::centered_at(gate.center, w, h).grown(reach, reach)
 }
 
 /// A marker's search gate in one frame.

@@ -205,23 +205,32 @@ impl MarkerState {
             .collect()
     }
 
-    /// One frame ahead.
-    pub(super) fn predict(&mut self, config: &TrackerConfig) {
+    /// One frame ahead: the motion model, then held in the frame of `size` (see
+    /// [`MarkerState::held_in_frame`]).
+    pub(super) fn predict(&mut self, config: &TrackerConfig, size: (u32, u32)) {
+        self.filter = self.predicted(config, size);
+    }
+
+    /// The filter one frame ahead, as [`MarkerState::predict`] leaves it, without changing
+    /// the marker: what the next frame will look at is known before it comes.
+    pub(super) fn predicted(&self, config: &TrackerConfig, size: (u32, u32)) -> Kalman {
+        let mut f = self.filter;
         match config.motion {
             MotionModel::Static => {
-                self.filter.stop(0.0);
-                self.filter.predict(self.acceleration_px);
+                f.stop(0.0);
+                f.predict(self.acceleration_px);
             }
             MotionModel::ConstantVelocity { .. } => {
-                let (p, v) = (self.filter.position, self.filter.velocity);
-                self.filter.predict(self.acceleration_px);
+                let (p, v) = (f.position, f.velocity);
+                f.predict(self.acceleration_px);
                 // A swing turns: the learnt acceleration bends the prediction.
                 if let Some(a) = self.swing.acceleration(p, v) {
-                    self.filter.position += a;
-                    self.filter.velocity += a;
+                    f.position += a;
+                    f.velocity += a;
                 }
             }
         }
+        self.held_in_frame(f, size)
     }
 
     /// A colour marker predicted out of the frame although its swing about its home stays
@@ -230,13 +239,14 @@ impl MarkerState {
     /// velocity was carried out of a turn (a swing of 5–8 Hz at 30 fps turns within a
     /// frame or two). Its prediction is brought back to that disc's edge, still, so that it
     /// is looked for in the frame rather than as a marker that left across the border.
-    pub(super) fn hold_in_frame(&mut self, (width, height): (u32, u32)) {
+    /// Returns `f`, so held.
+    fn held_in_frame(&self, mut f: Kalman, (width, height): (u32, u32)) -> Kalman {
         if self.template.is_some() {
-            return;
+            return f;
         }
-        let p = self.filter.position;
+        let p = f.position;
         if p.x >= 0.0 && p.y >= 0.0 && p.x <= f64::from(width) && p.y <= f64::from(height) {
-            return;
+            return f;
         }
         let side = window_px(self);
         let disc = self.reach_px + HOLD_REACH_WINDOWS * side;
@@ -247,10 +257,11 @@ impl MarkerState {
             && home.y + disc <= f64::from(height);
         let out = p - home;
         if !home_in_frame || out.norm() <= disc {
-            return;
+            return f;
         }
-        self.filter.position = home + out * (disc / out.norm());
-        self.filter.stop(side);
+        f.position = home + out * (disc / out.norm());
+        f.stop(side);
+        f
     }
 
     /// Record a measurement.
@@ -453,20 +464,20 @@ mod tests {
         // Carried 50 px left of its home, off the 192x64 frame, at 60 px a frame.
         m.filter.position = home + Vector2::new(-50.0, 0.0);
         m.filter.velocity = Vector2::new(-60.0, 0.0);
-        m.hold_in_frame(size);
+        m.filter = m.held_in_frame(m.filter, size);
         assert!((m.filter.position - (home + Vector2::new(-disc, 0.0))).norm() < 1e-9);
         assert_eq!(m.filter.velocity, Vector2::zeros());
         // A prediction inside the frame is left alone, however far from home.
         let inside = home + Vector2::new(100.0, 20.0);
         m.filter.position = inside;
         m.filter.velocity = Vector2::new(5.0, 0.0);
-        m.hold_in_frame(size);
+        m.filter = m.held_in_frame(m.filter, size);
         assert_eq!(m.filter.position, inside);
         // A marker tracked out to the border may have left the frame: not held.
         m.reach_px = home.x;
         let off = home + Vector2::new(-50.0, 0.0);
         m.filter.position = off;
-        m.hold_in_frame(size);
+        m.filter = m.held_in_frame(m.filter, size);
         assert_eq!(m.filter.position, off);
         Ok(())
     }
