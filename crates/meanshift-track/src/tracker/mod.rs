@@ -606,8 +606,10 @@ impl Tracker {
     /// [`Tracker::update`] with a frame the tracker may keep: a colour model's tracker needs
     /// the last frame's pixels (the background of a blurred marker's streak), which
     /// [`Tracker::update`] copies where the next frame will read them; given the frame, it
-    /// keeps it whole instead. For a caller that decodes every frame anyway (a
-    /// 512x424 frame's copy costs about as much as tracking one marker in it).
+    /// keeps it whole instead, and hands back the frame it no longer needs (the one before,
+    /// or this one for a gray model, which keeps none), for the caller to reuse or drop. For
+    /// a caller that decodes every frame anyway: a 512x424 frame's copy costs about as much
+    /// as tracking one marker in it.
     ///
     /// # Errors
     /// As [`Tracker::update`].
@@ -624,19 +626,24 @@ impl Tracker {
     /// let marker = MarkerInit { id: "A".into(), window: PixelRect::new(15, 25, 11, 11) };
     /// let mut tracker = Tracker::new(TrackerConfig::default(), &frame(20), None, &[marker])?;
     /// for x in [23, 26, 29] {
-    ///     tracker.update_owned(frame(x), None)?;
+    ///     let spare = tracker.update_owned(frame(x), None)?;
+    ///     assert_eq!(spare.dimensions(), (80, 60));
     /// }
     /// let last = tracker.tracks()[0].observations.last().expect("3 frames");
     /// let center = last.center.expect("found");
     /// assert!((center.x - 29.0).abs() < 1.0, "{center}");
     /// # Ok::<(), meanshift_track::TrackError>(())
     /// ```
-    pub fn update_owned(&mut self, frame: RgbImage, depth: Option<DepthView<'_>>) -> Result<()> {
+    pub fn update_owned(
+        &mut self,
+        frame: RgbImage,
+        depth: Option<DepthView<'_>>,
+    ) -> Result<RgbImage> {
         self.track_into(&frame, depth)?;
-        if self.previous.is_some() {
-            self.previous = Some(PreviousFrame::owned(frame));
-        }
-        Ok(())
+        Ok(match self.previous.as_mut() {
+            Some(p) => p.replace(frame),
+            None => frame,
+        })
     }
 
     /// Everything [`Tracker::update`] does but keeping the frame.

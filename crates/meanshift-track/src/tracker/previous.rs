@@ -26,13 +26,17 @@ pub(super) struct PreviousFrame {
 impl PreviousFrame {
     /// All of `frame`.
     pub(super) fn whole(frame: &RgbImage) -> Self {
-        Self::owned(frame.clone())
+        Self {
+            image: frame.clone(),
+            kept: vec![image_rect(frame.width(), frame.height())],
+        }
     }
 
-    /// All of `frame`, which the tracker may keep.
-    pub(super) fn owned(frame: RgbImage) -> Self {
-        let kept = vec![image_rect(frame.width(), frame.height())];
-        Self { image: frame, kept }
+    /// All of `frame`, which the tracker may keep; the frame kept until now is handed back.
+    pub(super) fn replace(&mut self, frame: RgbImage) -> RgbImage {
+        self.kept.clear();
+        self.kept.push(image_rect(frame.width(), frame.height()));
+        std::mem::replace(&mut self.image, frame)
     }
 
     /// The last frame, if it was kept over all of `rect` (clipped to the frame; an empty
@@ -127,7 +131,12 @@ mod tests {
         for f in 1..scene.frames().min(70) {
             let frame = scene.frame(f)?;
             kept.update(&frame, None)?;
-            owned.update_owned(frame, None)?;
+            let spare = owned.update_owned(frame, None)?;
+            assert_eq!(
+                spare,
+                scene.frame(f - 1)?,
+                "the frame before is handed back"
+            );
             let p = kept.previous.as_ref().expect("colour model");
             if p.kept.iter().map(PixelRect::area).sum::<u64>() < whole / 2 {
                 partial += 1;
