@@ -5,7 +5,8 @@
 //! replaces. OpenCV's figures on the same frames: `crates/meanshift-track/eval/stress_opencv.py`.
 #![allow(missing_docs, clippy::expect_used)] // bench harness: a failure should stop it
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 use treemocap::meanshift_track::stress::{Condition, EVALUATION_SEEDS, StressConfig, StressScene};
 use treemocap::meanshift_track::synthetic::{SequenceConfig, generate};
@@ -77,46 +78,28 @@ fn bench(c: &mut Criterion) {
 
     // A whole Kinect-style stress sequence (the first evaluation seed): 8 markers, a release
     // with whole-frame blur, jumps, holes, look-alikes, a loss or two. Divide by the
-    // marker-frames printed here for the cost per marker-frame.
-    let scene = StressScene::new(&StressConfig::condition(
-        Condition::KinectStyle,
-        EVALUATION_SEEDS.start,
-    ))
-    .expect("valid preset");
-    let frames: Vec<_> = (0..scene.frames())
-        .map(|f| scene.frame(f).expect("in range"))
-        .collect();
-    let marker_frames = (frames.len() - 1) * scene.markers().len();
+    // marker-frames printed in the names for the cost per marker-frame.
     let mut group = c.benchmark_group("meanshift_track_stress");
     group.sample_size(10);
-    group.bench_function(
-        format!("tracker_kinect_style_sequence_{marker_frames}_marker_frames"),
-        |b| {
-            b.iter(|| {
-                let mut t = Tracker::new(TrackerConfig::default(), &frames[0], None, scene.inits())
-                    .expect("valid");
-                for f in &frames[1..] {
-                    t.update(f, None).expect("same size");
-                }
-                black_box(t.frames())
-            })
-        },
-    );
-
+    bench_sequence(&mut group, Condition::KinectStyle, "kinect_style");
     // The real release clip of issue 19 re-created: one 14 px marker at 240 fps blurring into
     // a streak 2.5 widths long and jumping 2.5 widths a frame, then ringing down. One marker
     // in a whole frame: what keeping the last frame for the streaks costs shows here.
-    let scene = StressScene::new(&StressConfig::condition(
-        Condition::Release240,
-        EVALUATION_SEEDS.start,
-    ))
-    .expect("valid preset");
+    bench_sequence(&mut group, Condition::Release240, "release_240fps");
+    group.finish();
+}
+
+/// The default tracker over the whole stress sequence of `condition` (first evaluation
+/// seed), as `tracker_{name}_sequence_{marker_frames}_marker_frames`.
+fn bench_sequence(group: &mut BenchmarkGroup<'_, WallTime>, condition: Condition, name: &str) {
+    let scene = StressScene::new(&StressConfig::condition(condition, EVALUATION_SEEDS.start))
+        .expect("valid preset");
     let frames: Vec<_> = (0..scene.frames())
         .map(|f| scene.frame(f).expect("in range"))
         .collect();
     let marker_frames = (frames.len() - 1) * scene.markers().len();
     group.bench_function(
-        format!("tracker_release_240fps_sequence_{marker_frames}_marker_frames"),
+        format!("tracker_{name}_sequence_{marker_frames}_marker_frames"),
         |b| {
             b.iter(|| {
                 let mut t = Tracker::new(TrackerConfig::default(), &frames[0], None, scene.inits())
@@ -128,7 +111,6 @@ fn bench(c: &mut Criterion) {
             })
         },
     );
-    group.finish();
 }
 
 criterion_group!(benches, bench);
