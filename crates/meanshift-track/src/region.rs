@@ -33,6 +33,16 @@ const STREAK_FULL_COVERAGE: f32 = 0.5;
 /// Largest distance (8-bit levels) of a streak pixel from the line between background and
 /// marker colour, and as a share of the coverage times the contrast (colour noise, JPEG).
 const STREAK_RESIDUAL: [f32; 2] = [15.0, 0.3];
+/// Pixel step of the sampling pass of [`Region::fill_sparse`], along rows and between rows: a
+/// blob two pixels across in both directions holds a sampled pixel.
+const SPARSE_STEP_PX: usize = 2;
+/// Cells about each cell with a sampled hit that [`Region::fill_sparse`] weighs in full (a
+/// cell is half a marker window): a blob, its edge and the window about its centre.
+const SPARSE_REACH_CELLS: usize = 2;
+/// Share of a sparse fill's cells holding a hit past which the sampling stops and the region
+/// is weighed whole: each hit brings up to `(2 SPARSE_REACH_CELLS + 1)^2` cells with it, so
+/// past this most of a cluttered region would be weighed after the sampling pass anyway.
+const SPARSE_MAX_HIT_SHARE: f64 = 0.04;
 
 /// What a moving marker leaves: a streak whose pixels mix the marker's colour with the
 /// background in proportion to the time it covered them (`p = a m + (1 - a) b`). The
@@ -134,6 +144,71 @@ fn split_planes(pixels: &[u8], planes: &mut [f32]) {
     }
 }
 
+/// The weights (and with `bins_out` the bins) of one row of RGB pixels: the lookup of each
+/// pixel's features, raised to its streak weight over `background` where there is one.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn weigh_row<const HSV: bool>(
+    lookup: &Lookup,
+    features: &impl Fn([u8; 3]) -> [u8; 3],
+    row: &[u8],
+    background: Option<(Streak<'_>, &[u8])>,
+    hsv_row: &mut Vec<u8>,
+    planar: &mut Vec<f32>,
+    out: &mut [f32],
+    bins_out: Option<&mut [u32]>,
+) {
+    let Lookup {
+        tables,
+        values,
+        bins,
+        one_channel,
+    } = lookup;
+    let [t0, t1, t2] = &**tables;
+    let entry = |p: &[u8]| {
+        let f = features([p[0], p[1], p[2]]);
+        (t0[usize::from(f[0])] + t1[usize::from(f[1])] + t2[usize::from(f[2])]) as usize
+    };
+    let features_row = if HSV {
+        hsv_row.resize(row.len(), 0);
+        convert_run::<false>(row, hsv_row);
+        &hsv_row[..row.len()]
+    } else {
+        row
+    };
+    let one = one_channel.as_deref().map(|o| (o, &o.weight));
+    look_up_row(out, features_row, 0.0, one, values, features, &entry);
+    if let Some((s, background)) = background {
+        s.raise_row(out, row, background, planar);
+    }
+    if let Some(out) = bins_out {
+        let one = one_channel.as_deref().map(|o| (o, &o.bin));
+        look_up_row(out, features_row, NO_BIN, one, bins, features, &entry);
+    }
+}
+
+/// Every [`SPARSE_STEP_PX`]-th pixel of a row of RGB pixels (the first among them) into
+/// `out`.
+fn gather(row: &[u8], out: &mut Vec<u8>) {
+    let n = (row.len() / 3).div_ceil(SPARSE_STEP_PX);
+    out.resize(3 * n, 0);
+    for (o, p) in out.chunks_exact_mut(3).zip(row.chunks(3 * SPARSE_STEP_PX)) {
+        o.copy_from_slice(&p[..3]);
+    }
+}
+
+/// The streak of `filter` with the previous frame's pixels, where the previous frame is the
+/// frame's size.
+fn streak_background<'a>(
+    filter: &PixelFilter<'a>,
+    frame: &RgbImage,
+) -> Option<(Streak<'a>, &'a [u8])> {
+    filter
+        .streak
+        .filter(|s| s.previous.dimensions() == frame.dimensions())
+        .map(|s| (s, s.previous.as_raw().as_slice()))
+}
+
 /// What a pixel must pass to count, besides the model and its mask (in the [`Lookup`]): a
 /// depth gate, and rectangles other markers hold.
 #[derive(Debug, Clone, Copy)]
@@ -144,6 +219,59 @@ pub(crate) struct PixelFilter<'a> {
     pub(crate) masked: &'a [PixelRect],
     /// Streak weights for a moving marker (colour models), the greater of the two counts.
     pub(crate) streak: Option<Streak<'a>>,
+}
+
+impl PixelFilter<'_> {
+    /// Whether the pixel at `(x, y)` is rejected: in a masked rectangle, or beyond the depth
+    /// gate.
+    fn rejects(&self, x: i32, y: i32) -> bool {
+        let in_mask = self.masked.iter().any(|m| {
+            i64::from(x) >= i64::from(m.x)
+                && i64::from(y) >= i64::from(m.y)
+                && i64::from(x) < m.right()
+                && i64::from(y) < m.bottom()
+        });
+        in_mask
+            || self
+                .depth
+                .is_some_and(|(g, dm, d)| d.at(x, y).is_some_and(|v| (v - dm).abs() > g))
+    }
+
+    /// Weight 0 and no bin for the pixels of row `y` of `sub` (`weights`, `bins`: that row)
+    /// that the filter rejects: those in a masked rectangle, and those beyond the depth gate.
+    fn reject_in_row(
+        &self,
+        sub: PixelRect,
+        y: i32,
+        weights: &mut [f32],
+        mut bins: Option<&mut [u32]>,
+    ) {
+        let width = sub.width as usize;
+        let mut reject = |from: usize, to: usize| {
+            weights[from..to].fill(0.0);
+            if let Some(b) = bins.as_deref_mut() {
+                b[from..to].fill(NO_BIN);
+            }
+        };
+        for m in self.masked {
+            if i64::from(y) < i64::from(m.y) || i64::from(y) >= m.bottom() {
+                continue;
+            }
+            let from = (i64::from(m.x) - i64::from(sub.x)).clamp(0, width as i64) as usize;
+            let to = (m.right() - i64::from(sub.x)).clamp(0, width as i64) as usize;
+            if from < to {
+                reject(from, to);
+            }
+        }
+        if let Some((g, dm, d)) = self.depth {
+            for i in 0..width {
+                let x = sub.x + i as i32;
+                if d.at(x, y).is_some_and(|v| (v - dm).abs() > g) {
+                    reject(i, i + 1);
+                }
+            }
+        }
+    }
 }
 
 /// The model's weights over a region of the frame.
@@ -164,6 +292,19 @@ pub(crate) struct Region {
     hsv_row: Vec<u8>,
     /// A row and its background as channel planes, for the streak weights.
     planar: Vec<f32>,
+    /// Scratch of the sampling pass of [`Region::fill_sparse`].
+    scratch: SparseScratch,
+    /// Whether the last [`Region::fill_sparse`] found the region cluttered and weighed it
+    /// whole.
+    pub(crate) cluttered: bool,
+}
+
+/// The sampled pixels of a row, their background and their weights.
+#[derive(Debug, Default)]
+struct SparseScratch {
+    gathered: Vec<u8>,
+    background: Vec<u8>,
+    weights: Vec<f32>,
 }
 
 /// A model and a mask as table lookups: per feature channel and value, the histogram bin's
@@ -331,131 +472,242 @@ impl Region {
         rect: PixelRect,
         filter: &PixelFilter<'_>,
     ) {
+        self.fill_with(appearance, model, lookup, frame, rect, filter, None);
+    }
+
+    /// The weights of `model` over `rect` (clipped to the frame) where they can reach
+    /// `threshold`, 0 (no bin) elsewhere. A large region (a lost marker's gate) is first
+    /// weighed at every [`SPARSE_STEP_PX`]-th pixel of every [`SPARSE_STEP_PX`]-th row; the
+    /// cells (`cell` pixels) holding a sampled pixel at or above `threshold` that the filter
+    /// keeps, and the cells within [`SPARSE_REACH_CELLS`] of them, are then weighed in full,
+    /// exactly as [`Region::fill`] weighs them. A blob at or above `threshold` is weighed
+    /// whole, with the pixels about it, when its pixels lie within the reach of its sampled
+    /// ones: a marker's blob (a few pixels across at the least) does; a component no sampled
+    /// pixel falls on (a line one pixel thin, a speck) may be left at 0. A cluttered region
+    /// (more than [`SPARSE_MAX_HIT_SHARE`] of its cells hit) is weighed whole, and
+    /// [`Region::cluttered`] says so.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn fill_sparse(
+        &mut self,
+        appearance: &AppearanceModel,
+        model: &MarkerModel,
+        lookup: &Lookup,
+        frame: &RgbImage,
+        rect: PixelRect,
+        filter: &PixelFilter<'_>,
+        threshold: f32,
+        cell: (i32, i32),
+    ) {
+        let sparse = Some((threshold, cell));
+        self.fill_with(appearance, model, lookup, frame, rect, filter, sparse);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn fill_with(
+        &mut self,
+        appearance: &AppearanceModel,
+        model: &MarkerModel,
+        lookup: &Lookup,
+        frame: &RgbImage,
+        rect: PixelRect,
+        filter: &PixelFilter<'_>,
+        sparse: Option<(f32, (i32, i32))>,
+    ) {
         let rect = rect.intersect(&PixelRect::image(frame.width(), frame.height()));
         self.rect = rect;
+        self.cluttered = false;
         let area = rect.area() as usize;
-        self.weights.clear();
-        self.weights.reserve(area);
         let kernel = matches!(model, MarkerModel::Kernel { .. });
+        // A full fill writes every weight; a sparse one leaves 0 (no bin) where it does not.
+        self.weights.clear();
+        self.weights.resize(area, 0.0);
         self.bins.clear();
         if kernel {
-            self.bins.reserve(area);
+            self.bins.resize(area, NO_BIN);
         }
         match appearance {
             AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. } => {
-                self.fill_rows::<true>(lookup, frame, rect, filter, kernel, |p| p);
+                self.fill_in::<true>(lookup, frame, filter, kernel, sparse, |p| p);
             }
             AppearanceModel::Rgb { .. } => {
-                self.fill_rows::<false>(lookup, frame, rect, filter, kernel, |p| p);
+                self.fill_in::<false>(lookup, frame, filter, kernel, sparse, |p| p);
             }
             AppearanceModel::Gray { .. } => {
-                self.fill_rows::<false>(lookup, frame, rect, filter, kernel, |p| {
+                self.fill_in::<false>(lookup, frame, filter, kernel, sparse, |p| {
                     [rgb_to_gray(p), 0, 0]
                 });
             }
         }
     }
 
-    /// The pixel loop of [`Region::fill`], one copy per feature conversion: every pixel of a
-    /// row weighed without a branch on the filter, then the pixels the filter rejects set to
-    /// weight 0 (no bin). With `HSV` a row is first converted whole into `hsv_row` and
-    /// `features` applies to the HSV pixels.
+    /// One copy per feature conversion (`HSV`: rows converted to HSV first, `features`
+    /// applies to the converted pixels): the whole region, or with `sparse` the parts found
+    /// by [`Region::sparse_parts`].
+    #[inline(always)]
+    fn fill_in<const HSV: bool>(
+        &mut self,
+        lookup: &Lookup,
+        frame: &RgbImage,
+        filter: &PixelFilter<'_>,
+        kernel: bool,
+        sparse: Option<(f32, (i32, i32))>,
+        features: impl Fn([u8; 3]) -> [u8; 3],
+    ) {
+        let rect = self.rect;
+        let parts = sparse.and_then(|(threshold, (cw, ch))| {
+            let cell = (cw.max(1), ch.max(1));
+            self.sparse_parts::<HSV>(lookup, frame, filter, threshold, cell, &features)
+        });
+        match parts {
+            Some(parts) => {
+                for sub in parts {
+                    self.fill_rows::<HSV>(lookup, frame, sub, filter, kernel, &features);
+                }
+            }
+            None => {
+                self.cluttered = sparse.is_some();
+                self.fill_rows::<HSV>(lookup, frame, rect, filter, kernel, &features);
+            }
+        }
+    }
+
+    /// The parts of the region to weigh in full (see [`Region::fill_sparse`]): runs of cells
+    /// along each row of cells, as rectangles inside the region; `None` as soon as more than
+    /// [`SPARSE_MAX_HIT_SHARE`] of the cells hold a hit.
+    #[inline(always)]
+    fn sparse_parts<const HSV: bool>(
+        &mut self,
+        lookup: &Lookup,
+        frame: &RgbImage,
+        filter: &PixelFilter<'_>,
+        threshold: f32,
+        (cw, ch): (i32, i32),
+        features: &impl Fn([u8; 3]) -> [u8; 3],
+    ) -> Option<Vec<PixelRect>> {
+        let rect = self.rect;
+        if rect.is_empty() {
+            return Some(Vec::new());
+        }
+        let raw = frame.as_raw();
+        let stride = frame.width() as usize * 3;
+        let previous = streak_background(filter, frame);
+        let (nx, ny) = (
+            (rect.width + cw - 1) as usize / cw as usize,
+            (rect.height + ch - 1) as usize / ch as usize,
+        );
+        let mut hit = vec![false; nx * ny];
+        let most = (nx * ny) as f64 * SPARSE_MAX_HIT_SHARE;
+        let mut hits = 0usize;
+        let samples = (rect.width as usize).div_ceil(SPARSE_STEP_PX);
+        let mut scratch = std::mem::take(&mut self.scratch);
+        for y in (rect.y..rect.bottom() as i32).step_by(SPARSE_STEP_PX) {
+            let start = y as usize * stride + rect.x as usize * 3;
+            let row = &raw[start..start + rect.width as usize * 3];
+            gather(row, &mut scratch.gathered);
+            let background = previous.map(|(s, prev)| {
+                gather(&prev[start..start + row.len()], &mut scratch.background);
+                (s, &scratch.background[..])
+            });
+            scratch.weights.clear();
+            scratch.weights.resize(samples, 0.0);
+            weigh_row::<HSV>(
+                lookup,
+                features,
+                &scratch.gathered,
+                background,
+                &mut self.hsv_row,
+                &mut self.planar,
+                &mut scratch.weights,
+                None,
+            );
+            let cy = (y - rect.y) as usize / ch as usize;
+            for (k, &v) in scratch.weights.iter().enumerate() {
+                let x = rect.x + (k * SPARSE_STEP_PX) as i32;
+                if v >= threshold && !filter.rejects(x, y) {
+                    let cell = &mut hit[cy * nx + (x - rect.x) as usize / cw as usize];
+                    hits += usize::from(!*cell);
+                    *cell = true;
+                }
+            }
+            if hits as f64 > most {
+                self.scratch = scratch;
+                return None;
+            }
+        }
+        self.scratch = scratch;
+        // Each hit cell and the cells within the reach of it, as runs along the cell rows.
+        let reach = SPARSE_REACH_CELLS;
+        let near_hit = |cx: usize, cy: usize| {
+            (cy.saturating_sub(reach)..(cy + reach + 1).min(ny)).any(|r| {
+                hit[r * nx + cx.saturating_sub(reach)..r * nx + (cx + reach + 1).min(nx)]
+                    .contains(&true)
+            })
+        };
+        let mut parts = Vec::new();
+        for cy in 0..ny {
+            let mut run: Option<usize> = None;
+            for cx in 0..=nx {
+                match (cx < nx && near_hit(cx, cy), run) {
+                    (true, None) => run = Some(cx),
+                    (false, Some(from)) => {
+                        let part = PixelRect::new(
+                            rect.x + from as i32 * cw,
+                            rect.y + cy as i32 * ch,
+                            (cx - from) as i32 * cw,
+                            ch,
+                        );
+                        parts.push(part.intersect(&rect));
+                        run = None;
+                    }
+                    _ => {}
+                }
+            }
+        }
+        Some(parts)
+    }
+
+    /// Weigh the rows of `sub` (inside the region) into the region's buffers: every pixel of
+    /// a row weighed without a branch on the filter, then the pixels the filter rejects set
+    /// to weight 0 (no bin).
     #[inline(always)]
     fn fill_rows<const HSV: bool>(
         &mut self,
         lookup: &Lookup,
         frame: &RgbImage,
-        rect: PixelRect,
+        sub: PixelRect,
         filter: &PixelFilter<'_>,
         kernel: bool,
-        features: impl Fn([u8; 3]) -> [u8; 3],
+        features: &impl Fn([u8; 3]) -> [u8; 3],
     ) {
         let raw = frame.as_raw();
         let stride = frame.width() as usize * 3;
-        let previous = filter
-            .streak
-            .filter(|s| s.previous.dimensions() == frame.dimensions())
-            .map(|s| (s, s.previous.as_raw()));
-        let Lookup {
-            tables,
-            values,
+        let previous = streak_background(filter, frame);
+        let Region {
+            rect,
+            weights,
             bins,
-            one_channel,
-        } = lookup;
-        let [t0, t1, t2] = &**tables;
-        let width = rect.width as usize;
-        self.weights.resize(rect.area() as usize, 0.0);
-        if kernel {
-            self.bins.resize(rect.area() as usize, NO_BIN);
-        }
-        let entry = |p: &[u8]| {
-            let f = features([p[0], p[1], p[2]]);
-            (t0[usize::from(f[0])] + t1[usize::from(f[1])] + t2[usize::from(f[2])]) as usize
-        };
-        let mut hsv_row = std::mem::take(&mut self.hsv_row);
-        if HSV {
-            hsv_row.resize(width * 3, 0);
-        }
-        for (r, y) in (rect.y..rect.bottom() as i32).enumerate() {
-            let start = y as usize * stride + rect.x as usize * 3;
+            hsv_row,
+            planar,
+            ..
+        } = self;
+        let width = sub.width as usize;
+        for y in sub.y..sub.bottom() as i32 {
+            let start = y as usize * stride + sub.x as usize * 3;
             let row = &raw[start..start + width * 3];
-            let features_row = if HSV {
-                convert_run::<false>(row, &mut hsv_row);
-                &hsv_row[..]
-            } else {
-                row
-            };
-            let out = &mut self.weights[r * width..(r + 1) * width];
-            let one = one_channel.as_deref().map(|o| (o, &o.weight));
-            look_up_row(out, features_row, 0.0, one, values, &features, &entry);
-            if let Some((s, prev)) = previous {
-                s.raise_row(out, row, &prev[start..start + width * 3], &mut self.planar);
-            }
-            if kernel {
-                let out = &mut self.bins[r * width..(r + 1) * width];
-                let one = one_channel.as_deref().map(|o| (o, &o.bin));
-                look_up_row(out, features_row, NO_BIN, one, bins, &features, &entry);
-            }
-            self.reject_in_row(filter, rect, r, y, kernel);
-        }
-        self.hsv_row = hsv_row;
-    }
-
-    /// Weight 0 and no bin for the pixels of row `r` (image row `y`) of `rect` that `filter`
-    /// rejects: those in a masked rectangle, and those beyond the depth gate.
-    fn reject_in_row(
-        &mut self,
-        filter: &PixelFilter<'_>,
-        rect: PixelRect,
-        r: usize,
-        y: i32,
-        kernel: bool,
-    ) {
-        let width = rect.width as usize;
-        let row_start = r * width;
-        let mut reject = |from: usize, to: usize| {
-            self.weights[row_start + from..row_start + to].fill(0.0);
-            if kernel {
-                self.bins[row_start + from..row_start + to].fill(NO_BIN);
-            }
-        };
-        for m in filter.masked {
-            if i64::from(y) < i64::from(m.y) || i64::from(y) >= m.bottom() {
-                continue;
-            }
-            let from = (i64::from(m.x) - i64::from(rect.x)).clamp(0, width as i64) as usize;
-            let to = (m.right() - i64::from(rect.x)).clamp(0, width as i64) as usize;
-            if from < to {
-                reject(from, to);
-            }
-        }
-        if let Some((g, dm, d)) = filter.depth {
-            for i in 0..width {
-                let x = rect.x + i as i32;
-                if d.at(x, y).is_some_and(|v| (v - dm).abs() > g) {
-                    reject(i, i + 1);
-                }
-            }
+            let at = (y - rect.y) as usize * rect.width as usize + (sub.x - rect.x) as usize;
+            let out = &mut weights[at..at + width];
+            let mut bins_out = kernel.then(|| &mut bins[at..at + width]);
+            weigh_row::<HSV>(
+                lookup,
+                features,
+                row,
+                previous.map(|(s, prev)| (s, &prev[start..start + width * 3])),
+                hsv_row,
+                planar,
+                out,
+                bins_out.as_deref_mut(),
+            );
+            filter.reject_in_row(sub, y, out, bins_out);
         }
     }
 
@@ -857,5 +1109,154 @@ mod tests {
             let zero = a.weights.iter().filter(|&&w| w == 0.0).count();
             assert!(zero > 0 && zero < a.weights.len(), "{appearance:?}: {zero}");
         }
+    }
+
+    /// A grey background (`previous`) and the frame of the sparse-fill test: red discs of 3 to
+    /// 12 px (one with a faint halo, one cut by the region's edge, one half in a mask), a
+    /// streak (red mixed half and half with the background along 30 px) and a faint streak
+    /// far from everything (a sixth of an exposure), both under the threshold.
+    fn sparse_scene() -> (RgbImage, RgbImage) {
+        let (fw, fh) = (320u32, 240u32);
+        let previous = RgbImage::from_fn(fw, fh, grey_at);
+        let discs = [
+            (40.0, 40.0, 6.0),
+            (200.0, 60.0, 1.6),
+            (120.0, 180.0, 3.0),
+            (317.0, 120.0, 5.0),
+            (60.0, 200.0, 5.0),
+        ];
+        let frame = RgbImage::from_fn(fw, fh, |x, y| {
+            let (xf, yf) = (f64::from(x), f64::from(y));
+            let disc = discs
+                .iter()
+                .any(|&(cx, cy, r)| (xf - cx).hypot(yf - cy) <= r);
+            let streak = (250..280).contains(&x) && (150..157).contains(&y);
+            // A faint streak far from everything (a sixth of an exposure): weighs under the
+            // threshold.
+            let faint = (150..160).contains(&x) && (20..30).contains(&y);
+            let g = grey_at(x, y);
+            let mix = |a: f64| {
+                let m = |c: u8, r: f64| (a * r + (1.0 - a) * f64::from(c)).round() as u8;
+                image::Rgb([m(g[0], 210.0), m(g[1], 30.0), m(g[2], 25.0)])
+            };
+            // A faint halo about the first disc (under the threshold, next to a blob).
+            let halo = (6.0..=12.0).contains(&(xf - 40.0).hypot(yf - 40.0));
+            if faint || halo {
+                mix(0.16)
+            } else if disc {
+                image::Rgb([210, 30, 25])
+            } else if streak {
+                mix(0.5)
+            } else {
+                g
+            }
+        });
+        (frame, previous)
+    }
+
+    fn grey_at(x: u32, y: u32) -> image::Rgb<u8> {
+        let v = 90 + ((x * 7 + y * 13) % 23) as u8;
+        image::Rgb([v, v + 5, v + 10])
+    }
+
+    /// A sparse fill weighs every blob at or above its threshold, the pixels about it and the
+    /// window about its centre exactly as a full fill does, and leaves the rest at 0; a
+    /// cluttered region is weighed whole.
+    #[test]
+    fn a_sparse_fill_weighs_every_blob_as_a_full_fill_does() {
+        let (fw, fh) = (320u32, 240u32);
+        let (frame, previous) = sparse_scene();
+        let appearance = AppearanceModel::Hue { bins: 16 };
+        let mask = ChannelRange::CAMSHIFT_DEMO;
+        let window = PixelRect::new(34, 34, 12, 12);
+        let model =
+            MarkerModel::learn("m", &frame, window, &appearance, &mask, false).expect("learns");
+        let lookup = Lookup::new(&appearance, &model, &mask);
+        let masked = [PixelRect::new(58, 190, 20, 20)];
+        let filter = PixelFilter {
+            depth: None,
+            masked: &masked,
+            streak: Some(Streak {
+                previous: &previous,
+                colour: [210.0, 30.0, 25.0],
+            }),
+        };
+        let rect = PixelRect::new(0, 0, 360, 240);
+        let threshold = 255.0 * 0.35;
+        let (mut full, mut sparse) = (Region::default(), Region::default());
+        full.fill(&appearance, &model, &lookup, &frame, rect, &filter);
+        sparse.fill_sparse(
+            &appearance,
+            &model,
+            &lookup,
+            &frame,
+            rect,
+            &filter,
+            threshold,
+            (6, 6),
+        );
+        assert!(!sparse.cluttered);
+        assert_eq!(sparse.rect, full.rect);
+        let r = full.rect;
+        let at = |x: i32, y: i32| full.index(x, y);
+        let (mut blob_pixels, mut skipped) = (0, 0);
+        for y in r.y..r.bottom() as i32 {
+            for x in r.x..r.right() as i32 {
+                let k = at(x, y);
+                skipped += usize::from(sparse.weights[k] != full.weights[k]);
+                if full.weights[k] < threshold {
+                    continue;
+                }
+                blob_pixels += 1;
+                // The blob pixel, its ring and a 12 px window about it: as in the full fill.
+                for yy in (y - 6).max(r.y)..(y + 7).min(r.bottom() as i32) {
+                    for xx in (x - 6).max(r.x)..(x + 7).min(r.right() as i32) {
+                        let j = at(xx, yy);
+                        assert_eq!(sparse.weights[j], full.weights[j], "({xx}, {yy})");
+                    }
+                }
+            }
+        }
+        // The smallest disc (1.6 px) and the streak count too.
+        assert!(full.weights[at(200, 60)] >= threshold);
+        assert!(full.weights[at(265, 153)] >= threshold);
+        assert!(blob_pixels > 300, "{blob_pixels}");
+        // The disc cut by the mask: weighed outside it, 0 inside it.
+        assert!(full.weights[at(56, 200)] >= threshold);
+        assert_eq!(sparse.weights[at(62, 200)], 0.0);
+        // Most of the region was not weighed: where the full fill has weights under the
+        // threshold far from any blob (the streak's faint edges, colour noise), the sparse
+        // one has 0.
+        let weighed = sparse.weights.iter().filter(|&&w| w > 0.0).count();
+        let nonzero = full.weights.iter().filter(|&&w| w > 0.0).count();
+        assert!(weighed > 0 && weighed <= nonzero, "{weighed} {nonzero}");
+        assert!(full.weights[at(40, 50)] > 0.0 && full.weights[at(40, 50)] < threshold);
+        let faint = full.weights[at(155, 25)];
+        assert!(faint > 0.0 && faint < threshold, "{faint}");
+        assert_eq!(sparse.weights[at(155, 25)], 0.0);
+        assert!(skipped > 0);
+
+        // Red everywhere: the region is cluttered and weighed whole.
+        let cluttered = RgbImage::from_fn(fw, fh, |x, y| {
+            if (x / 4 + y / 4) % 3 == 0 {
+                image::Rgb([210, 30, 25])
+            } else {
+                grey_at(x, y)
+            }
+        });
+        let mut whole = Region::default();
+        full.fill(&appearance, &model, &lookup, &cluttered, rect, &filter);
+        whole.fill_sparse(
+            &appearance,
+            &model,
+            &lookup,
+            &cluttered,
+            rect,
+            &filter,
+            threshold,
+            (6, 6),
+        );
+        assert!(whole.cluttered);
+        assert_eq!(whole.weights, full.weights);
     }
 }

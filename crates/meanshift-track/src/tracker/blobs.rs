@@ -34,9 +34,32 @@ pub(super) fn changed_share(frame: &RgbImage, previous: &PreviousFrame, holds: P
     changed as f64 / all.max(1) as f64
 }
 
+/// Regions (a lost marker's gate) of more than this many marker windows may be weighed
+/// sparsely: sampled first, and in full only about what was found (`Region::fill_sparse`);
+/// a 3x3-window quick region and a gate a few windows wide are weighed whole.
+const SPARSE_MIN_WINDOWS: i64 = 36;
+/// Least cell side of a sparse fill, pixels: past the sampling step and a blob's edge.
+const SPARSE_MIN_CELL_PX: i32 = 4;
+/// Frames for which a marker whose gate was found cluttered has it weighed whole (the
+/// gate moves little from frame to frame, and a sampling pass cut short is wasted).
+pub(super) const CLUTTER_HOLD_FRAMES: usize = 10;
+
+/// The cells of a sparse fill for marker `m`: half a window (at least
+/// [`SPARSE_MIN_CELL_PX`]), two of them about every hit (`Region::fill_sparse`), so that the
+/// window about a blob's centre and its box grown by a pixel are weighed.
+fn sparse_cell(m: &MarkerState) -> (i32, i32) {
+    let (w, h) = m.size;
+    (
+        (w / 2).max(SPARSE_MIN_CELL_PX),
+        (h / 2).max(SPARSE_MIN_CELL_PX),
+    )
+}
+
 /// The weights of marker `m`'s model over `rect`, with its mask, depth gate and the `masked`
 /// rectangles, and its streak weights against the `previous` frame where it was kept over
-/// `rect` (recovering tracker, colour models).
+/// `rect` (recovering tracker, colour models). With `sparse`, a region of more than
+/// [`SPARSE_MIN_WINDOWS`] windows is weighed only about the blobs of the marker's look in it
+/// (the same blobs and measurements as a full fill gives).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fill(
     region: &mut Region,
@@ -47,6 +70,7 @@ pub(super) fn fill(
     depth: Option<&DepthView<'_>>,
     rect: PixelRect,
     masked: &[PixelRect],
+    sparse: bool,
 ) {
     let gate = match (config.depth_gate_m, m.depth_m, depth) {
         (Some(g), Some(dm), Some(d)) => Some((g, dm, *d)),
@@ -66,7 +90,18 @@ pub(super) fn fill(
         masked,
         streak,
     };
-    region.fill(&config.model, &m.model, &m.lookup, frame, rect, &filter);
+    let (w, h) = m.size;
+    let visible = rect.intersect(&image_rect(frame.width(), frame.height()));
+    if sparse && visible.area() as i64 > SPARSE_MIN_WINDOWS * i64::from(w) * i64::from(h) {
+        let threshold = m.reference.threshold;
+        let cell = sparse_cell(m);
+        let model = &config.model;
+        region.fill_sparse(
+            model, &m.model, &m.lookup, frame, rect, &filter, threshold, cell,
+        );
+    } else {
+        region.fill(&config.model, &m.model, &m.lookup, frame, rect, &filter);
+    }
 }
 
 /// Learn the marker's blob in its first window: threshold, pixel count, width.

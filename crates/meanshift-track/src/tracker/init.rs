@@ -39,6 +39,7 @@ impl Tracker {
             depth,
             region,
             &[],
+            false,
         );
         state.reference.mass = self.region.mass(w).max(1.0);
         learn_blob(&mut state, &self.region, &mut self.labeler, w);
@@ -146,6 +147,7 @@ impl Tracker {
                 depth,
                 whole,
                 &[],
+                false,
             );
             for c in candidates_in(&mut self.region, &mut self.labeler, m, None, &[]) {
                 if centres

@@ -358,6 +358,9 @@ struct MarkerState {
     /// The farthest the marker has been tracked from its home (pixels): places the quick
     /// pass followed it to, not places detection took it to (those may be look-alikes).
     reach_px: f64,
+    /// Detection weighs the marker's gate whole until this frame: its gate was last found
+    /// cluttered with its look (see `blobs::fill`).
+    dense_until: usize,
     /// The swing line the marker is known by: its first, replaced only by lines along the
     /// same direction (a swap of two markers of one look is seen against it).
     signature: Option<crate::swing::SwingLine>,

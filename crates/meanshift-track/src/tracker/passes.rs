@@ -39,6 +39,7 @@ impl Tracker {
                 depth,
                 region,
                 &masks,
+                false,
             );
             let mode = self.region.locate(
                 &m.model,
@@ -320,6 +321,8 @@ impl Tracker {
         quick: Option<Scored>,
     ) -> (Vec<Candidate>, Vec<(Point2<f64>, PixelRect)>) {
         let gate = self.gate(i);
+        let frame_index = self.frames();
+        let mut cluttered = false;
         let mut found: Vec<Measured> = quick.iter().map(|q| q.measured).collect();
         let m = &self.markers[i];
         if let Some(t) = &m.template {
@@ -340,6 +343,9 @@ impl Tracker {
                 Vec::new()
             };
             masks.extend(m.static_masks(region, gate.center));
+            // The moments of the adaptive window read a border beyond what a sparse fill
+            // weighs; a gate found cluttered lately is weighed whole.
+            let sparse = self.config.window == WindowMode::Fixed && frame_index >= m.dense_until;
             fill(
                 &mut self.region,
                 &self.config,
@@ -349,7 +355,9 @@ impl Tracker {
                 depth,
                 region,
                 &masks,
+                sparse,
             );
+            cluttered = self.region.cluttered;
             let all: Vec<Point2<f64>> = self.markers.iter().map(|m| m.filter.position).collect();
             let others = sharing_predictions(&self.markers, i, &all);
             found.extend(
@@ -404,6 +412,9 @@ impl Tracker {
                 }
             })
             .collect();
+        if cluttered {
+            self.markers[i].dense_until = frame_index + CLUTTER_HOLD_FRAMES;
+        }
         (scored, seen)
     }
 

@@ -21,6 +21,7 @@ impl MarkerState {
             last_center: center,
             home: center,
             reach_px: 0.0,
+            dense_until: 0,
             signature: None,
             reference: Reference {
                 mass: 1.0,
