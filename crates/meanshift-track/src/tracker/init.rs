@@ -147,7 +147,8 @@ impl Tracker {
                 depth,
                 whole,
                 &[],
-                false,
+                // Only the blobs' places are kept: a sparse fill gives the same.
+                true,
             );
             for c in candidates_in(&mut self.region, &mut self.labeler, m, None, &[]) {
                 if centres
