@@ -86,6 +86,9 @@ fn bench(c: &mut Criterion) {
     // a streak 2.5 widths long and jumping 2.5 widths a frame, then ringing down. One marker
     // in a whole frame: what keeping the last frame for the streaks costs shows here.
     bench_sequence(&mut group, Condition::Release240, "release_240fps");
+    // Markers released out of the frame and back: lost for up to tens of frames each, their
+    // gates growing to much of the frame, then found again (the search for lost markers).
+    bench_sequence(&mut group, Condition::Reentry, "reentry");
     group.finish();
 }
 
