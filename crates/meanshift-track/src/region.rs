@@ -67,9 +67,11 @@ impl Streak<'_> {
     /// planes), which the compiler vectorises.
     fn raise_row(&self, weights: &mut [f32], row: &[u8], background: &[u8], planar: &mut Vec<f32>) {
         let n = weights.len().min(row.len() / 3).min(background.len() / 3);
-        planar.clear();
-        planar.resize(6 * n, 0.0);
-        let (pixel, back) = planar.split_at_mut(3 * n);
+        // Every value of the planes is written below: grow the scratch, never clear it.
+        if planar.len() < 6 * n {
+            planar.resize(6 * n, 0.0);
+        }
+        let (pixel, back) = planar[..6 * n].split_at_mut(3 * n);
         split_planes(&row[..3 * n], pixel);
         split_planes(&background[..3 * n], back);
         let (p0, rest) = pixel.split_at(n);
@@ -518,12 +520,17 @@ impl Region {
         self.cluttered = false;
         let area = rect.area() as usize;
         let kernel = matches!(model, MarkerModel::Kernel { .. });
-        // A full fill writes every weight; a sparse one leaves 0 (no bin) where it does not.
-        self.weights.clear();
+        // A full fill writes every weight and bin, so what the buffers held stays only until
+        // it is overwritten; a sparse one leaves 0 (no bin) where it does not weigh.
         self.weights.resize(area, 0.0);
-        self.bins.clear();
         if kernel {
             self.bins.resize(area, NO_BIN);
+        } else {
+            self.bins.clear();
+        }
+        if sparse.is_some() {
+            self.weights.fill(0.0);
+            self.bins.fill(NO_BIN);
         }
         match appearance {
             AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. } => {
