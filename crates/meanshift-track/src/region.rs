@@ -913,6 +913,7 @@ impl Region {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detect::Labeler;
     use crate::tracker::DepthView;
 
     /// Every pixel the filter rejects weighs 0 and has no bin; every other pixel is as
@@ -1265,5 +1266,116 @@ mod tests {
         );
         assert!(whole.cluttered);
         assert_eq!(whole.weights, full.weights);
+    }
+
+    /// Over random scenes (discs of 2–9 px radius in two reds, streaks at any angle, masks,
+    /// noise), the blobs of a sparse fill and their steadied centres are those of a full fill.
+    #[test]
+    fn sparse_and_full_fills_give_the_same_blobs_on_random_scenes() {
+        let mut rng = crate::rng::Rng::new(31);
+        let appearance = AppearanceModel::Hue { bins: 16 };
+        let mask = ChannelRange::CAMSHIFT_DEMO;
+        let mut compared = 0;
+        for scene in 0..24 {
+            let discs: Vec<(f64, f64, f64, u8)> = (0..rng.int(1, 9))
+                .map(|_| {
+                    let c = (rng.range([0.0, 320.0]), rng.range([0.0, 240.0]));
+                    (
+                        c.0,
+                        c.1,
+                        rng.range([2.0, 9.0]),
+                        if rng.uniform() < 0.5 { 200 } else { 150 },
+                    )
+                })
+                .collect();
+            let streak = (
+                (rng.range([40.0, 280.0]), rng.range([40.0, 200.0])),
+                rng.range([0.0, std::f64::consts::PI]),
+                rng.range([0.3, 0.7]),
+            );
+            let noise = rng.next();
+            let frame = RgbImage::from_fn(320, 240, |x, y| {
+                let (xf, yf) = (f64::from(x), f64::from(y));
+                let g = grey_at(x, y);
+                let jitter = ((noise ^ u64::from(x * 131 + y * 977)) % 7) as u8;
+                if let Some(&(_, _, _, red)) =
+                    discs.iter().find(|d| (xf - d.0).hypot(yf - d.1) <= d.2)
+                {
+                    return image::Rgb([red + jitter, 30, 25]);
+                }
+                let ((sx, sy), angle, a) = streak;
+                let (dx, dy) = (xf - sx, yf - sy);
+                let along = dx * angle.cos() + dy * angle.sin();
+                let across = -dx * angle.sin() + dy * angle.cos();
+                if along.abs() < 20.0 && across.abs() < 4.0 {
+                    let m = |c: u8, r: f64| (a * r + (1.0 - a) * f64::from(c)).round() as u8;
+                    return image::Rgb([m(g[0], 210.0), m(g[1], 30.0), m(g[2], 25.0)]);
+                }
+                g
+            });
+            let (_, previous) = sparse_scene();
+            let window = discs
+                .iter()
+                .find(|d| {
+                    d.2 >= 4.0
+                        && d.3 == 200
+                        && (8.0..312.0).contains(&d.0)
+                        && (8.0..232.0).contains(&d.1)
+                })
+                .map(|d| PixelRect::centered_at(Point2::new(d.0, d.1), 12, 12));
+            let Some(window) = window else {
+                continue;
+            };
+            let Ok(model) = MarkerModel::learn("m", &frame, window, &appearance, &mask, false)
+            else {
+                continue;
+            };
+            let lookup = Lookup::new(&appearance, &model, &mask);
+            let masked = [PixelRect::new(
+                rng.int(0, 300) as i32,
+                rng.int(0, 220) as i32,
+                30,
+                20,
+            )];
+            let filter = PixelFilter {
+                depth: None,
+                masked: &masked,
+                streak: Some(Streak {
+                    previous: &previous,
+                    colour: [210.0, 30.0, 25.0],
+                }),
+            };
+            let rect = PixelRect::new(-20, -10, 360, 260);
+            let threshold = 255.0 * 0.35;
+            let (mut full, mut sparse) = (Region::default(), Region::default());
+            full.fill(&appearance, &model, &lookup, &frame, rect, &filter);
+            let cell = (6, 6);
+            sparse.fill_sparse(
+                &appearance,
+                &model,
+                &lookup,
+                &frame,
+                rect,
+                &filter,
+                threshold,
+                cell,
+            );
+            let (mut a, mut b) = (Labeler::default(), Labeler::default());
+            for gap in 1..=3 {
+                let blobs = a.blobs(&full.weights, full.rect, full.rect, threshold, 3, gap);
+                let same = b.blobs(&sparse.weights, sparse.rect, sparse.rect, threshold, 3, gap);
+                assert_eq!(blobs, same, "scene {scene} gap {gap}");
+                for blob in &blobs {
+                    let w = PixelRect::centered_at(blob.centroid, 12, 12);
+                    let (p, q) = (
+                        a.edge_centroid(&full.weights, full.rect, blob, w, 6),
+                        b.edge_centroid(&sparse.weights, sparse.rect, blob, w, 6),
+                    );
+                    assert_eq!(p, q, "scene {scene} gap {gap}");
+                    compared += 1;
+                }
+            }
+        }
+        assert!(compared > 100, "{compared}");
     }
 }
