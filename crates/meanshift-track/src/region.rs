@@ -1268,6 +1268,48 @@ mod tests {
         assert_eq!(whole.weights, full.weights);
     }
 
+    /// A random scene for the sparse-fill test: discs of 2–9 px radius in two reds (centre
+    /// x, y, radius, red level), a streak at any angle, noise.
+    #[allow(clippy::type_complexity)]
+    fn random_scene(rng: &mut crate::rng::Rng) -> (RgbImage, Vec<(f64, f64, f64, u8)>) {
+        let discs: Vec<(f64, f64, f64, u8)> = (0..rng.int(1, 9))
+            .map(|_| {
+                let c = (rng.range([0.0, 320.0]), rng.range([0.0, 240.0]));
+                (
+                    c.0,
+                    c.1,
+                    rng.range([2.0, 9.0]),
+                    if rng.uniform() < 0.5 { 200 } else { 150 },
+                )
+            })
+            .collect();
+        let streak = (
+            (rng.range([40.0, 280.0]), rng.range([40.0, 200.0])),
+            rng.range([0.0, std::f64::consts::PI]),
+            rng.range([0.3, 0.7]),
+        );
+        let noise = rng.next();
+        let frame = RgbImage::from_fn(320, 240, |x, y| {
+            let (xf, yf) = (f64::from(x), f64::from(y));
+            let g = grey_at(x, y);
+            let jitter = ((noise ^ u64::from(x * 131 + y * 977)) % 7) as u8;
+            if let Some(&(_, _, _, red)) = discs.iter().find(|d| (xf - d.0).hypot(yf - d.1) <= d.2)
+            {
+                return image::Rgb([red + jitter, 30, 25]);
+            }
+            let ((sx, sy), angle, a) = streak;
+            let (dx, dy) = (xf - sx, yf - sy);
+            let along = dx * angle.cos() + dy * angle.sin();
+            let across = -dx * angle.sin() + dy * angle.cos();
+            if along.abs() < 20.0 && across.abs() < 4.0 {
+                let m = |c: u8, r: f64| (a * r + (1.0 - a) * f64::from(c)).round() as u8;
+                return image::Rgb([m(g[0], 210.0), m(g[1], 30.0), m(g[2], 25.0)]);
+            }
+            g
+        });
+        (frame, discs)
+    }
+
     /// Over random scenes (discs of 2–9 px radius in two reds, streaks at any angle, masks,
     /// noise), the blobs of a sparse fill and their steadied centres are those of a full fill.
     #[test]
@@ -1277,42 +1319,7 @@ mod tests {
         let mask = ChannelRange::CAMSHIFT_DEMO;
         let mut compared = 0;
         for scene in 0..24 {
-            let discs: Vec<(f64, f64, f64, u8)> = (0..rng.int(1, 9))
-                .map(|_| {
-                    let c = (rng.range([0.0, 320.0]), rng.range([0.0, 240.0]));
-                    (
-                        c.0,
-                        c.1,
-                        rng.range([2.0, 9.0]),
-                        if rng.uniform() < 0.5 { 200 } else { 150 },
-                    )
-                })
-                .collect();
-            let streak = (
-                (rng.range([40.0, 280.0]), rng.range([40.0, 200.0])),
-                rng.range([0.0, std::f64::consts::PI]),
-                rng.range([0.3, 0.7]),
-            );
-            let noise = rng.next();
-            let frame = RgbImage::from_fn(320, 240, |x, y| {
-                let (xf, yf) = (f64::from(x), f64::from(y));
-                let g = grey_at(x, y);
-                let jitter = ((noise ^ u64::from(x * 131 + y * 977)) % 7) as u8;
-                if let Some(&(_, _, _, red)) =
-                    discs.iter().find(|d| (xf - d.0).hypot(yf - d.1) <= d.2)
-                {
-                    return image::Rgb([red + jitter, 30, 25]);
-                }
-                let ((sx, sy), angle, a) = streak;
-                let (dx, dy) = (xf - sx, yf - sy);
-                let along = dx * angle.cos() + dy * angle.sin();
-                let across = -dx * angle.sin() + dy * angle.cos();
-                if along.abs() < 20.0 && across.abs() < 4.0 {
-                    let m = |c: u8, r: f64| (a * r + (1.0 - a) * f64::from(c)).round() as u8;
-                    return image::Rgb([m(g[0], 210.0), m(g[1], 30.0), m(g[2], 25.0)]);
-                }
-                g
-            });
+            let (frame, discs) = random_scene(&mut rng);
             let (_, previous) = sparse_scene();
             let window = discs
                 .iter()
