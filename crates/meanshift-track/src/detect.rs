@@ -127,6 +127,7 @@ pub(crate) struct Labeler {
     /// The runs of foreground of the last run, row by row, and where each row's begin.
     runs: Vec<Run>,
     row_runs: Vec<usize>,
+    cursors: Vec<usize>,
 }
 
 /// Foreground pixels `x0..x1` of a row, and the label they were given.
@@ -240,7 +241,11 @@ impl Labeler {
         threshold: f32,
         g: usize,
     ) {
-        let mut cursors = vec![0usize; g];
+        // Per row above within the gap, the first run that can still touch a run of this row
+        // (kept in the labeler, so that a warm call does not allocate).
+        let mut cursors = std::mem::take(&mut self.cursors);
+        cursors.clear();
+        cursors.resize(g.min(h), 0);
         for y in 0..h {
             let row_start = self.runs.len();
             self.row_runs.push(row_start);
@@ -309,6 +314,7 @@ impl Labeler {
                     .extend((y * w + x0) as u32..(y * w + x1) as u32);
             }
         }
+        self.cursors = cursors;
     }
 
     /// The centroid of `blob` (from the last [`Labeler::blobs`] run on the same `weights` and

@@ -307,6 +307,8 @@ struct SparseScratch {
     gathered: Vec<u8>,
     background: Vec<u8>,
     weights: Vec<f32>,
+    /// Per cell of the region, whether a sampled pixel in it reached the threshold.
+    hit: Vec<bool>,
 }
 
 /// A model and a mask as table lookups: per feature channel and value, the histogram bin's
@@ -602,11 +604,12 @@ impl Region {
             (rect.width + cw - 1) as usize / cw as usize,
             (rect.height + ch - 1) as usize / ch as usize,
         );
-        let mut hit = vec![false; nx * ny];
         let most = (nx * ny) as f64 * SPARSE_MAX_HIT_SHARE;
         let mut hits = 0usize;
         let samples = (rect.width as usize).div_ceil(SPARSE_STEP_PX);
         let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.hit.clear();
+        scratch.hit.resize(nx * ny, false);
         for y in (rect.y..rect.bottom() as i32).step_by(SPARSE_STEP_PX) {
             let start = y as usize * stride + rect.x as usize * 3;
             let row = &raw[start..start + rect.width as usize * 3];
@@ -631,7 +634,7 @@ impl Region {
             for (k, &v) in scratch.weights.iter().enumerate() {
                 let x = rect.x + (k * SPARSE_STEP_PX) as i32;
                 if v >= threshold && !filter.rejects(x, y) {
-                    let cell = &mut hit[cy * nx + (x - rect.x) as usize / cw as usize];
+                    let cell = &mut scratch.hit[cy * nx + (x - rect.x) as usize / cw as usize];
                     hits += usize::from(!*cell);
                     *cell = true;
                 }
@@ -641,9 +644,9 @@ impl Region {
                 return None;
             }
         }
-        self.scratch = scratch;
         // Each hit cell and the cells within the reach of it, as runs along the cell rows.
         let reach = SPARSE_REACH_CELLS;
+        let hit = &scratch.hit;
         let near_hit = |cx: usize, cy: usize| {
             (cy.saturating_sub(reach)..(cy + reach + 1).min(ny)).any(|r| {
                 hit[r * nx + cx.saturating_sub(reach)..r * nx + (cx + reach + 1).min(nx)]
@@ -670,6 +673,7 @@ impl Region {
                 }
             }
         }
+        self.scratch = scratch;
         Some(parts)
     }
 
@@ -1167,6 +1171,52 @@ mod tests {
         image::Rgb([v, v + 5, v + 10])
     }
 
+    /// Blob threshold of the sparse-fill tests (the tracker's `BLOB_THRESHOLD` of 255).
+    const TEST_THRESHOLD: f32 = 255.0 * 0.35;
+
+    /// The hue model of a red marker learnt in `window` of `frame`, and its lookup.
+    fn red_marker(frame: &RgbImage, window: PixelRect) -> Option<(MarkerModel, Lookup)> {
+        let appearance = AppearanceModel::Hue { bins: 16 };
+        let mask = ChannelRange::CAMSHIFT_DEMO;
+        let model = MarkerModel::learn("m", frame, window, &appearance, &mask, false).ok()?;
+        let lookup = Lookup::new(&appearance, &model, &mask);
+        Some((model, lookup))
+    }
+
+    /// A full and a sparse fill (cells of 6 px) of `marker` over `rect` of `frame`, the red
+    /// streak over `previous` counting and `masked` rejected.
+    fn full_and_sparse(
+        (model, lookup): &(MarkerModel, Lookup),
+        frame: &RgbImage,
+        previous: &RgbImage,
+        masked: &[PixelRect],
+        rect: PixelRect,
+    ) -> (Region, Region) {
+        let appearance = AppearanceModel::Hue { bins: 16 };
+        let filter = PixelFilter {
+            depth: None,
+            masked,
+            streak: Some(Streak {
+                previous,
+                colour: [210.0, 30.0, 25.0],
+            }),
+        };
+        let (mut full, mut sparse) = (Region::default(), Region::default());
+        full.fill(&appearance, model, lookup, frame, rect, &filter);
+        let (threshold, cell) = (TEST_THRESHOLD, (6, 6));
+        sparse.fill_sparse(
+            &appearance,
+            model,
+            lookup,
+            frame,
+            rect,
+            &filter,
+            threshold,
+            cell,
+        );
+        (full, sparse)
+    }
+
     /// A sparse fill weighs every blob at or above its threshold, the pixels about it and the
     /// window about its centre exactly as a full fill does, and leaves the rest at 0; a
     /// cluttered region is weighed whole.
@@ -1174,35 +1224,11 @@ mod tests {
     fn a_sparse_fill_weighs_every_blob_as_a_full_fill_does() {
         let (fw, fh) = (320u32, 240u32);
         let (frame, previous) = sparse_scene();
-        let appearance = AppearanceModel::Hue { bins: 16 };
-        let mask = ChannelRange::CAMSHIFT_DEMO;
-        let window = PixelRect::new(34, 34, 12, 12);
-        let model =
-            MarkerModel::learn("m", &frame, window, &appearance, &mask, false).expect("learns");
-        let lookup = Lookup::new(&appearance, &model, &mask);
+        let marker = red_marker(&frame, PixelRect::new(34, 34, 12, 12)).expect("learns");
         let masked = [PixelRect::new(58, 190, 20, 20)];
-        let filter = PixelFilter {
-            depth: None,
-            masked: &masked,
-            streak: Some(Streak {
-                previous: &previous,
-                colour: [210.0, 30.0, 25.0],
-            }),
-        };
         let rect = PixelRect::new(0, 0, 360, 240);
-        let threshold = 255.0 * 0.35;
-        let (mut full, mut sparse) = (Region::default(), Region::default());
-        full.fill(&appearance, &model, &lookup, &frame, rect, &filter);
-        sparse.fill_sparse(
-            &appearance,
-            &model,
-            &lookup,
-            &frame,
-            rect,
-            &filter,
-            threshold,
-            (6, 6),
-        );
+        let threshold = TEST_THRESHOLD;
+        let (full, sparse) = full_and_sparse(&marker, &frame, &previous, &masked, rect);
         assert!(!sparse.cluttered);
         assert_eq!(sparse.rect, full.rect);
         let r = full.rect;
@@ -1252,18 +1278,7 @@ mod tests {
                 grey_at(x, y)
             }
         });
-        let mut whole = Region::default();
-        full.fill(&appearance, &model, &lookup, &cluttered, rect, &filter);
-        whole.fill_sparse(
-            &appearance,
-            &model,
-            &lookup,
-            &cluttered,
-            rect,
-            &filter,
-            threshold,
-            (6, 6),
-        );
+        let (full, whole) = full_and_sparse(&marker, &cluttered, &previous, &masked, rect);
         assert!(whole.cluttered);
         assert_eq!(whole.weights, full.weights);
     }
@@ -1315,8 +1330,6 @@ mod tests {
     #[test]
     fn sparse_and_full_fills_give_the_same_blobs_on_random_scenes() {
         let mut rng = crate::rng::Rng::new(31);
-        let appearance = AppearanceModel::Hue { bins: 16 };
-        let mask = ChannelRange::CAMSHIFT_DEMO;
         let mut compared = 0;
         for scene in 0..24 {
             let (frame, discs) = random_scene(&mut rng);
@@ -1333,40 +1346,18 @@ mod tests {
             let Some(window) = window else {
                 continue;
             };
-            let Ok(model) = MarkerModel::learn("m", &frame, window, &appearance, &mask, false)
-            else {
+            let Some(marker) = red_marker(&frame, window) else {
                 continue;
             };
-            let lookup = Lookup::new(&appearance, &model, &mask);
             let masked = [PixelRect::new(
                 rng.int(0, 300) as i32,
                 rng.int(0, 220) as i32,
                 30,
                 20,
             )];
-            let filter = PixelFilter {
-                depth: None,
-                masked: &masked,
-                streak: Some(Streak {
-                    previous: &previous,
-                    colour: [210.0, 30.0, 25.0],
-                }),
-            };
             let rect = PixelRect::new(-20, -10, 360, 260);
-            let threshold = 255.0 * 0.35;
-            let (mut full, mut sparse) = (Region::default(), Region::default());
-            full.fill(&appearance, &model, &lookup, &frame, rect, &filter);
-            let cell = (6, 6);
-            sparse.fill_sparse(
-                &appearance,
-                &model,
-                &lookup,
-                &frame,
-                rect,
-                &filter,
-                threshold,
-                cell,
-            );
+            let threshold = TEST_THRESHOLD;
+            let (full, sparse) = full_and_sparse(&marker, &frame, &previous, &masked, rect);
             let (mut a, mut b) = (Labeler::default(), Labeler::default());
             for gap in 1..=3 {
                 let blobs = a.blobs(&full.weights, full.rect, full.rect, threshold, 3, gap);
