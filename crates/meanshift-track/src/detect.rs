@@ -118,9 +118,8 @@ pub(crate) struct Labeler {
     /// The area labelled in the last run (image coordinates).
     area: PixelRect,
     labels: Vec<u32>,
-    /// The pixels at or above the threshold in the last run, row by row (indices into
-    /// `labels`).
-    foreground: Vec<u32>,
+    /// The foreground of the row being labelled, a bit per pixel.
+    bits: Vec<u64>,
     parent: Vec<u32>,
     sums: Vec<[f64; 7]>,
     bounds: Vec<[i32; 4]>,
@@ -139,8 +138,27 @@ struct Run {
 }
 
 const NONE: u32 = u32::MAX;
-/// Pixels of a row tested together for any foreground before they are visited one by one.
-const SKIP_CHUNK: usize = 32;
+
+/// The first pixel at or after `from` whose bit in `bits` is `set` (a row's foreground, a
+/// bit per pixel, 0 past the row's end), or `w`, the row's length.
+fn next_bit(bits: &[u64], from: usize, w: usize, set: bool) -> usize {
+    let word = |k: usize| if set { bits[k] } else { !bits[k] };
+    let mut k = from / 64;
+    if k >= bits.len() {
+        return w;
+    }
+    let mut m = word(k) & (!0u64 << (from % 64));
+    loop {
+        if m != 0 {
+            return (k * 64 + m.trailing_zeros() as usize).min(w);
+        }
+        k += 1;
+        if k >= bits.len() {
+            return w;
+        }
+        m = word(k);
+    }
+}
 
 /// Whether a weight counts as foreground: at or above the threshold, or NaN (not known to be
 /// below it).
@@ -191,7 +209,6 @@ impl Labeler {
         let at = |x: usize, y: usize| weights[offset + y * stride + x];
         self.labels.clear();
         self.labels.resize(w * h, NONE);
-        self.foreground.clear();
         self.parent.clear();
         self.runs.clear();
         self.row_runs.clear();
@@ -209,12 +226,17 @@ impl Labeler {
         self.bounds.clear();
         self.bounds
             .resize(n, [i32::MAX, i32::MAX, i32::MIN, i32::MIN]);
-        for &i in &self.foreground {
-            let (x, y) = (i as usize % w, i as usize / w);
-            let root = find(&mut self.parent, self.labels[i as usize]) as usize;
-            let v = f64::from(at(x, y));
-            let (xi, yi) = (area.x + x as i32, area.y + y as i32);
-            accumulate(&mut self.sums[root], &mut self.bounds[root], xi, yi, v);
+        // Run by run in raster order: every pixel in the order a pixel-by-pixel pass takes.
+        for (y, rows) in self.row_runs.iter().enumerate() {
+            let end = self.row_runs.get(y + 1).copied().unwrap_or(self.runs.len());
+            for r in &self.runs[*rows..end] {
+                let root = find(&mut self.parent, r.label) as usize;
+                for x in r.x0..r.x1 {
+                    let v = f64::from(at(x, y));
+                    let (xi, yi) = (area.x + x as i32, area.y + y as i32);
+                    accumulate(&mut self.sums[root], &mut self.bounds[root], xi, yi, v);
+                }
+            }
         }
         let mut out = Vec::new();
         for (root, (s, b)) in self.sums.iter().zip(&self.bounds).enumerate() {
@@ -253,26 +275,19 @@ impl Labeler {
                 *c = if y > dy { self.row_runs[y - dy - 1] } else { 0 };
             }
             let row = &weights[offset + y * stride..offset + y * stride + w];
-            let mut x = 0;
+            // The row's foreground as bits (a branch-free test per pixel, which vectorises),
+            // then its runs found a word at a time: most of a gate is background.
+            self.bits.clear();
+            self.bits.extend(row.chunks(64).map(|chunk| {
+                chunk.iter().enumerate().fold(0u64, |m, (i, &v)| {
+                    m | (u64::from(is_foreground(v, threshold)) << i)
+                })
+            }));
+            let mut x = next_bit(&self.bits, 0, w, true);
             while x < w {
-                // Most of a gate is background: skip runs of it a chunk at a time (a
-                // branch-free test per chunk, which vectorises). NaN counts as foreground.
-                if x % SKIP_CHUNK == 0 {
-                    let chunk = &row[x..(x + SKIP_CHUNK).min(w)];
-                    if chunk.iter().fold(true, |all, &v| all & (v < threshold)) {
-                        x += chunk.len();
-                        continue;
-                    }
-                }
-                if !is_foreground(row[x], threshold) {
-                    x += 1;
-                    continue;
-                }
                 let x0 = x;
-                while x < w && is_foreground(row[x], threshold) {
-                    x += 1;
-                }
-                let x1 = x;
+                let x1 = next_bit(&self.bits, x0, w, false);
+                x = next_bit(&self.bits, x1, w, true);
                 let mut label = NONE;
                 let parent = &mut self.parent;
                 let mut join = |l: u32| {
@@ -310,8 +325,6 @@ impl Labeler {
                 }
                 self.runs.push(Run { x0, x1, label });
                 self.labels[y * w + x0..y * w + x1].fill(label);
-                self.foreground
-                    .extend((y * w + x0) as u32..(y * w + x1) as u32);
             }
         }
         self.cursors = cursors;

@@ -6,7 +6,7 @@ use image::RgbImage;
 use nalgebra::Point2;
 
 use crate::histogram::Histogram;
-use crate::hsv::{ChannelRange, convert_run, rgb_to_gray};
+use crate::hsv::{ChannelRange, rgb_to_gray, rgb_to_hsv};
 use crate::meanshift::{Moments, TermCriteria, moments_from_f64_sums};
 use crate::model::{AppearanceModel, MarkerModel};
 use crate::rect::PixelRect;
@@ -43,6 +43,10 @@ const SPARSE_REACH_CELLS: usize = 2;
 /// is weighed whole: each hit brings up to `(2 SPARSE_REACH_CELLS + 1)^2` cells with it, so
 /// past this most of a cluttered region would be weighed after the sampling pass anyway.
 const SPARSE_MAX_HIT_SHARE: f64 = 0.04;
+/// Pixels weighed together by [`Region::fill_rows`]: long enough that the vector loops'
+/// remainders are rare, short enough that the block, its feature planes and the streak's
+/// channel planes stay in the first-level cache (about 30 KB).
+const BLOCK_PX: usize = 1024;
 
 /// What a moving marker leaves: a streak whose pixels mix the marker's colour with the
 /// background in proportion to the time it covered them (`p = a m + (1 - a) b`). The
@@ -102,30 +106,65 @@ impl Streak<'_> {
     }
 }
 
-/// Per pixel of a row (3 channels each), its entry of `table` (a weight or a bin), `missing`
-/// where the lookup rejects it: by the one-channel form (`one`: the form and its table by
-/// the first channel) when there is one, else by the general three-table `entry`.
+/// Per pixel of a row given as three feature planes, its entry of `table` (a weight or a
+/// bin), `missing` where the lookup rejects it: by the one-channel form (`one`: the form and
+/// its table by the first channel) when there is one, else by the general three-table
+/// lookup. Planes, not interleaved pixels, so that the one-channel loop runs in vector lanes
+/// (a gathered read and four range tests per pixel).
 #[inline(always)]
 fn look_up_row<T: Copy>(
     out: &mut [T],
-    pixels: &[u8],
+    [c0, c1, c2]: [&[u8]; 3],
     missing: T,
     one: Option<(&OneChannel, &[T; 256])>,
     table: &[T],
-    features: &impl Fn([u8; 3]) -> [u8; 3],
-    entry: &impl Fn(&[u8]) -> usize,
+    tables: &[[u32; 256]; 3],
 ) {
+    let n = out.len().min(c0.len()).min(c1.len()).min(c2.len());
+    let (out, c0, c1, c2) = (&mut out[..n], &c0[..n], &c1[..n], &c2[..n]);
     if let Some((one, by_first)) = one {
-        for (o, p) in out.iter_mut().zip(pixels.chunks_exact(3)) {
-            let f = features([p[0], p[1], p[2]]);
-            let v = by_first[usize::from(f[0])];
-            *o = if one.passes(&f) { v } else { missing };
+        let ([lo1, lo2], [hi1, hi2]) = (one.lower, one.upper);
+        for i in 0..n {
+            let pass = (c1[i] >= lo1) & (c1[i] <= hi1) & (c2[i] >= lo2) & (c2[i] <= hi2);
+            let v = by_first[usize::from(c0[i])];
+            out[i] = if pass { v } else { missing };
         }
     } else {
-        for (o, p) in out.iter_mut().zip(pixels.chunks_exact(3)) {
-            *o = table.get(entry(p)).copied().unwrap_or(missing);
+        let [t0, t1, t2] = tables;
+        for i in 0..n {
+            let entry = t0[usize::from(c0[i])] + t1[usize::from(c1[i])] + t2[usize::from(c2[i])];
+            out[i] = table.get(entry as usize).copied().unwrap_or(missing);
         }
     }
+}
+
+/// The features of a row of RGB pixels as three planes in `planes` (each `row.len() / 3`
+/// long): with `HSV` the pixels converted to HSV and then `features` applied, else
+/// `features` of the RGB pixels.
+#[inline(always)]
+fn feature_planes<'p, const HSV: bool>(
+    row: &[u8],
+    features: &impl Fn([u8; 3]) -> [u8; 3],
+    planes: &'p mut Vec<u8>,
+) -> [&'p [u8]; 3] {
+    let n = row.len() / 3;
+    // Every value of the planes is written below: grow the scratch, never clear it.
+    if planes.len() < 3 * n {
+        planes.resize(3 * n, 0);
+    }
+    let (p0, rest) = planes[..3 * n].split_at_mut(n);
+    let (p1, p2) = rest.split_at_mut(n);
+    for (((p, x0), x1), x2) in row
+        .chunks_exact(3)
+        .zip(p0.iter_mut())
+        .zip(p1.iter_mut())
+        .zip(p2.iter_mut())
+    {
+        let rgb = [p[0], p[1], p[2]];
+        let f = features(if HSV { rgb_to_hsv(rgb) } else { rgb });
+        (*x0, *x1, *x2) = (f[0], f[1], f[2]);
+    }
+    [&*p0, &*p1, &*p2]
 }
 
 /// Interleaved 3-channel bytes into three `f32` planes (`planes` holds the three planes one
@@ -166,26 +205,15 @@ fn weigh_row<const HSV: bool>(
         bins,
         one_channel,
     } = lookup;
-    let [t0, t1, t2] = &**tables;
-    let entry = |p: &[u8]| {
-        let f = features([p[0], p[1], p[2]]);
-        (t0[usize::from(f[0])] + t1[usize::from(f[1])] + t2[usize::from(f[2])]) as usize
-    };
-    let features_row = if HSV {
-        hsv_row.resize(row.len(), 0);
-        convert_run::<false>(row, hsv_row);
-        &hsv_row[..row.len()]
-    } else {
-        row
-    };
+    let planes = feature_planes::<HSV>(row, features, hsv_row);
     let one = one_channel.as_deref().map(|o| (o, &o.weight));
-    look_up_row(out, features_row, 0.0, one, values, features, &entry);
+    look_up_row(out, planes, 0.0, one, values, tables);
     if let Some((s, background)) = background {
         s.raise_row(out, row, background, planar);
     }
     if let Some(out) = bins_out {
         let one = one_channel.as_deref().map(|o| (o, &o.bin));
-        look_up_row(out, features_row, NO_BIN, one, bins, features, &entry);
+        look_up_row(out, planes, NO_BIN, one, bins, tables);
     }
 }
 
@@ -289,16 +317,28 @@ pub(crate) struct Region {
     p: Vec<f64>,
     /// Pixel scratch of a kernel step.
     pixels: Vec<(i32, i32, u32, f64)>,
-    /// One row of the region converted to HSV (hue models), converted a row at a time so
-    /// that the conversion runs in vector lanes apart from the table lookups.
+    /// One row of the region's features (HSV, RGB or gray) as three planes, converted a row
+    /// at a time so that the conversion and the lookups each run in vector lanes.
     hsv_row: Vec<u8>,
     /// A row and its background as channel planes, for the streak weights.
     planar: Vec<f32>,
     /// Scratch of the sampling pass of [`Region::fill_sparse`].
     scratch: SparseScratch,
+    /// Scratch of [`Region::fill_rows`].
+    block: BlockScratch,
     /// Whether the last [`Region::fill_sparse`] found the region cluttered and weighed it
     /// whole.
     pub(crate) cluttered: bool,
+}
+
+/// A block of rows of a region copied out of the frame (and the previous frame), and its
+/// weights and bins where the rows do not lie one after the other in the region's buffers.
+#[derive(Debug, Default)]
+struct BlockScratch {
+    pixels: Vec<u8>,
+    background: Vec<u8>,
+    weights: Vec<f32>,
+    bins: Vec<u32>,
 }
 
 /// The sampled pixels of a row, their background and their weights.
@@ -374,15 +414,6 @@ impl OneChannel {
             lower,
             upper,
         })
-    }
-
-    /// Whether the second and third channels of a pixel pass.
-    #[inline(always)]
-    fn passes(&self, p: &[u8]) -> bool {
-        (p[1] >= self.lower[0])
-            & (p[1] <= self.upper[0])
-            & (p[2] >= self.lower[1])
-            & (p[2] <= self.upper[1])
     }
 }
 
@@ -677,9 +708,11 @@ impl Region {
         Some(parts)
     }
 
-    /// Weigh the rows of `sub` (inside the region) into the region's buffers: every pixel of
-    /// a row weighed without a branch on the filter, then the pixels the filter rejects set
-    /// to weight 0 (no bin).
+    /// Weigh the rows of `sub` (inside the region) into the region's buffers: every pixel
+    /// weighed without a branch on the filter, then the pixels the filter rejects set to
+    /// weight 0 (no bin). Rows are weighed together, a block of about [`BLOCK_PX`] pixels
+    /// copied out of the frame at a time, so that the vector loops run long (a region's rows
+    /// are a few dozen pixels, and each loop's scalar remainder cost as much as its lanes).
     #[inline(always)]
     fn fill_rows<const HSV: bool>(
         &mut self,
@@ -690,6 +723,9 @@ impl Region {
         kernel: bool,
         features: &impl Fn([u8; 3]) -> [u8; 3],
     ) {
+        if sub.is_empty() {
+            return;
+        }
         let raw = frame.as_raw();
         let stride = frame.width() as usize * 3;
         let previous = streak_background(filter, frame);
@@ -699,26 +735,72 @@ impl Region {
             bins,
             hsv_row,
             planar,
+            block,
             ..
         } = self;
         let width = sub.width as usize;
-        for y in sub.y..sub.bottom() as i32 {
-            let start = y as usize * stride + sub.x as usize * 3;
-            let row = &raw[start..start + width * 3];
-            let at = (y - rect.y) as usize * rect.width as usize + (sub.x - rect.x) as usize;
-            let out = &mut weights[at..at + width];
-            let mut bins_out = kernel.then(|| &mut bins[at..at + width]);
-            weigh_row::<HSV>(
-                lookup,
-                features,
-                row,
-                previous.map(|(s, prev)| (s, &prev[start..start + width * 3])),
-                hsv_row,
-                planar,
-                out,
-                bins_out.as_deref_mut(),
-            );
-            filter.reject_in_row(sub, y, out, bins_out);
+        // The sub's rows lie one after the other in the region's buffers when it spans them.
+        let contiguous = sub.x == rect.x && sub.width == rect.width;
+        let rows_per_block = (BLOCK_PX / width).max(1);
+        let bottom = sub.bottom() as i32;
+        let mut y0 = sub.y;
+        while y0 < bottom {
+            let y1 = (y0 + rows_per_block as i32).min(bottom);
+            let n = (y1 - y0) as usize * width;
+            block.pixels.clear();
+            block.background.clear();
+            for y in y0..y1 {
+                let start = y as usize * stride + sub.x as usize * 3;
+                block
+                    .pixels
+                    .extend_from_slice(&raw[start..start + width * 3]);
+                if let Some((_, prev)) = previous {
+                    block
+                        .background
+                        .extend_from_slice(&prev[start..start + width * 3]);
+                }
+            }
+            let background = previous.map(|(s, _)| (s, &block.background[..]));
+            let at = (y0 - rect.y) as usize * rect.width as usize + (sub.x - rect.x) as usize;
+            if contiguous {
+                weigh_row::<HSV>(
+                    lookup,
+                    features,
+                    &block.pixels,
+                    background,
+                    hsv_row,
+                    planar,
+                    &mut weights[at..at + n],
+                    kernel.then(|| &mut bins[at..at + n]),
+                );
+            } else {
+                block.weights.resize(n, 0.0);
+                block.bins.resize(if kernel { n } else { 0 }, NO_BIN);
+                weigh_row::<HSV>(
+                    lookup,
+                    features,
+                    &block.pixels,
+                    background,
+                    hsv_row,
+                    planar,
+                    &mut block.weights,
+                    kernel.then_some(&mut block.bins[..]),
+                );
+                for (j, w) in block.weights.chunks_exact(width).enumerate() {
+                    let to = at + j * rect.width as usize;
+                    weights[to..to + width].copy_from_slice(w);
+                    if kernel {
+                        bins[to..to + width].copy_from_slice(&block.bins[j * width..][..width]);
+                    }
+                }
+            }
+            for y in y0..y1 {
+                let at = (y - rect.y) as usize * rect.width as usize + (sub.x - rect.x) as usize;
+                let out = &mut weights[at..at + width];
+                let bins_out = kernel.then(|| &mut bins[at..at + width]);
+                filter.reject_in_row(sub, y, out, bins_out);
+            }
+            y0 = y1;
         }
     }
 

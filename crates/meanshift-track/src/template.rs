@@ -7,6 +7,8 @@
 //! a grid two or four times coarser, its local maxima, each refined at full resolution and to
 //! a sub-pixel centre by a parabola through the correlations of the neighbouring pixels.
 
+use std::cell::OnceCell;
+
 use image::RgbImage;
 use nalgebra::{Point2, Vector2};
 
@@ -33,11 +35,23 @@ pub(crate) struct Template {
     values: Vec<f32>,
     /// Where the marker's centre lies relative to the patch's centre pixel (sub-pixel).
     offset: Vector2<f64>,
-    /// The template averaged over `scale` x `scale` cells, for the coarse search.
-    coarse: Vec<f32>,
+    /// The template averaged over `scale` x `scale` cells, for the coarse search: made when
+    /// a search first needs it after the template was learnt or blended (a surroundings
+    /// template, blended every frame, is never searched).
+    coarse: OnceCell<Vec<f32>>,
     scale: usize,
     /// Sum and sum of squares of `values` when none is unknown (see [`ncc_in`]).
     sums: Option<(f64, f64)>,
+}
+
+/// Reusable buffers of the template comparisons.
+#[derive(Debug, Default)]
+pub(crate) struct TemplateScratch {
+    patch: Vec<f32>,
+    /// The template and the patch widened to `f64`, and column sums, for a block of windows.
+    template: Vec<f64>,
+    wide: Vec<f64>,
+    cols: Vec<f64>,
 }
 
 /// A match of a template: the marker's centre there and the correlation.
@@ -97,12 +111,10 @@ fn ncc(a: &[f32], b: &[f32]) -> f64 {
 }
 
 /// The quick path's sums, known when neither the template nor the frame's patch has an
-/// unknown pixel: the template's sum and sum of squares, and, where known beforehand (from a
-/// summed-area table of the patch), the window's.
+/// unknown pixel: the template's sum and sum of squares.
 #[derive(Debug, Clone, Copy)]
 struct Quick {
     template: (f64, f64),
-    window: Option<(f64, f64)>,
 }
 
 /// [`ncc`] of the patch `a` (rows of `width`) against the equally sized window of `b` (rows of
@@ -113,17 +125,14 @@ fn ncc_in(a: &[f32], width: usize, b: &[f32], b_stride: usize, quick: Option<Qui
     let (n, sa, sb, saa, sbb, sab);
     if let Some(Quick {
         template: (a_sum, a_squares),
-        window,
     }) = quick
     {
-        // Gray levels are integers, so the window's sums (below 2^53) are exact in any order,
-        // from a summed-area table or summed here; the products are summed in four lanes,
-        // which the compiler vectorises (another order than the slow path's, within 1e-15).
-        let (s1, s2) = window.unwrap_or_else(|| {
-            (0..rows).flat_map(row).fold((0.0, 0.0), |(s, q), &y| {
-                let y = f64::from(y);
-                (s + y, q + y * y)
-            })
+        // Gray levels are integers, so the window's sums (below 2^53) are exact in any order
+        // (as `window_sums` takes them); the products are summed in four lanes, which the
+        // compiler vectorises (another order than the slow path's, within 1e-15).
+        let (s1, s2) = (0..rows).flat_map(row).fold((0.0, 0.0), |(s, q), &y| {
+            let y = f64::from(y);
+            (s + y, q + y * y)
         });
         let mut p4 = [0.0f64; 4];
         for j in 0..rows {
@@ -159,7 +168,13 @@ fn ncc_in(a: &[f32], width: usize, b: &[f32], b_stride: usize, quick: Option<Qui
         }
         (n, sa, sb, saa, sbb, sab) = (n1, s1, s2, s11, s22, s12);
     }
-    if n < MIN_PIXELS || (n as f64) < MIN_OVERLAP * a.len() as f64 {
+    ncc_of(n, a.len(), [sa, sb, saa, sbb, sab])
+}
+
+/// The correlation of `n` pixel pairs of patches of `len` pixels from their sums `[Σa, Σb,
+/// Σa², Σb², Σab]`; 0 without contrast or enough overlap.
+fn ncc_of(n: usize, len: usize, [sa, sb, saa, sbb, sab]: [f64; 5]) -> f64 {
+    if n < MIN_PIXELS || (n as f64) < MIN_OVERLAP * len as f64 {
         return 0.0;
     }
     let nf = n as f64;
@@ -171,45 +186,77 @@ fn ncc_in(a: &[f32], width: usize, b: &[f32], b_stride: usize, quick: Option<Qui
     ((sab - sa * sb / nf) / (va * vb).sqrt()).clamp(-1.0, 1.0)
 }
 
-/// Summed-area tables of a patch's values and squares (`(width + 1) x (rows + 1)`, a zero
-/// row and column first), for the sums of any window in four reads.
-struct SummedArea {
-    stride: usize,
-    sums: Vec<f64>,
-    squares: Vec<f64>,
-}
-
-impl SummedArea {
-    fn of(patch: &[f32], width: usize, rows: usize) -> Self {
-        let stride = width + 1;
-        let mut sums = vec![0.0; stride * (rows + 1)];
-        let mut squares = vec![0.0; stride * (rows + 1)];
-        for (j, row) in patch.chunks_exact(width).take(rows).enumerate() {
-            let (mut s, mut q) = (0.0, 0.0);
-            for (i, &v) in row.iter().enumerate() {
-                let v = f64::from(v);
-                s += v;
-                q += v * v;
-                let k = (j + 1) * stride + i + 1;
-                sums[k] = sums[k - stride] + s;
-                squares[k] = squares[k - stride] + q;
+/// `Σ a·b` of the template `a` (rows of `width`) against `N` windows of `b` (row stride
+/// `b_stride`) that start at columns `0..N` of its first row, each summed exactly as
+/// [`ncc_in`]'s quick path sums one (four lanes in column order, a row's remainder into the
+/// first lane), the `N` windows side by side so that their sums run in parallel. Both are
+/// `f32` values widened to `f64` beforehand, so every product is the same.
+fn products_side_by_side<const N: usize>(
+    a: &[f64],
+    width: usize,
+    b: &[f64],
+    b_stride: usize,
+) -> [f64; N] {
+    let rows = a.len() / width;
+    let mut p = [[0.0f64; 4]; N];
+    let chunks = width / 4;
+    for j in 0..rows {
+        let a_row = &a[j * width..(j + 1) * width];
+        let b_row = &b[j * b_stride..j * b_stride + width + N - 1];
+        for (i, x) in a_row.chunks_exact(4).enumerate() {
+            for (u, lanes) in p.iter_mut().enumerate() {
+                let y = &b_row[u + 4 * i..u + 4 * i + 4];
+                for k in 0..4 {
+                    lanes[k] += x[k] * y[k];
+                }
             }
         }
-        Self {
-            stride,
-            sums,
-            squares,
+        for t in 4 * chunks..width {
+            for (u, lanes) in p.iter_mut().enumerate() {
+                lanes[0] += a_row[t] * b_row[u + t];
+            }
         }
     }
+    p.map(|l| (l[0] + l[1]) + (l[2] + l[3]))
+}
 
-    /// Sum and sum of squares of the `width` x `height` window whose first pixel is `(u, v)`.
-    fn window(&self, u: usize, v: usize, width: usize, height: usize) -> (f64, f64) {
-        let at = |t: &[f64], x: usize, y: usize| t.get(y * self.stride + x).copied().unwrap_or(0.0);
-        let sum = |t: &[f64]| {
-            at(t, u + width, v + height) - at(t, u, v + height) - at(t, u + width, v) + at(t, u, v)
-        };
-        (sum(&self.sums), sum(&self.squares))
+/// Sum and sum of squares of each of the `N x N` windows (`width` x `height`) of `b` (row
+/// stride `stride`, whole gray levels), row-major: from column sums slid down a row at a
+/// time and window sums along them. Whole numbers far below 2^53, so every sum is exact,
+/// the same as summing each window in any order.
+fn window_sums<const N: usize>(
+    b: &[f64],
+    stride: usize,
+    (width, height): (usize, usize),
+    cols: &mut Vec<f64>,
+) -> [[(f64, f64); N]; N] {
+    cols.clear();
+    cols.resize(2 * stride, 0.0);
+    let (sums, squares) = cols.split_at_mut(stride);
+    for row in b.chunks_exact(stride).take(height) {
+        for ((s, q), &v) in sums.iter_mut().zip(squares.iter_mut()).zip(row) {
+            *s += v;
+            *q += v * v;
+        }
     }
+    let mut out = [[(0.0, 0.0); N]; N];
+    for (v, out_row) in out.iter_mut().enumerate() {
+        if v > 0 {
+            let (gone, new) = (
+                &b[(v - 1) * stride..v * stride],
+                &b[(v + height - 1) * stride..],
+            );
+            for (((s, q), &g), &n) in sums.iter_mut().zip(squares.iter_mut()).zip(gone).zip(new) {
+                *s += n - g;
+                *q += n * n - g * g;
+            }
+        }
+        for (u, o) in out_row.iter_mut().enumerate() {
+            let (s, q) = (&sums[u..u + width], &squares[u..u + width]);
+            *o = (s.iter().sum(), q.iter().sum());
+        }
+    }
+    out
 }
 
 /// Sum and sum of squares of `values` in order (f64), or `None` when one is unknown.
@@ -263,14 +310,13 @@ impl Template {
         } else {
             1
         };
-        let coarse = coarsen(&values, width, height, scale);
         Self {
             width,
             height,
             offset: Vector2::new(center.x - a.0 as f64, center.y - a.1 as f64),
             sums: known_sums(&values),
             values,
-            coarse,
+            coarse: OnceCell::new(),
             scale,
         }
     }
@@ -278,15 +324,15 @@ impl Template {
     /// NCC (-1..=1) between the template and the patch at `center`, over the pixels inside
     /// the frame in both (0 without contrast or overlap).
     #[cfg(test)]
-    fn ncc(&self, frame: &RgbImage, center: Point2<f64>, scratch: &mut Vec<f32>) -> f64 {
+    fn ncc(&self, frame: &RgbImage, center: Point2<f64>, scratch: &mut TemplateScratch) -> f64 {
         patch_at(
             frame,
             anchor(center - self.offset),
             self.width,
             self.height,
-            scratch,
+            &mut scratch.patch,
         );
-        ncc(&self.values, scratch)
+        ncc(&self.values, &scratch.patch)
     }
 
     /// The best NCC within one pixel of `center` (a centre a pixel off loses much of a small
@@ -295,7 +341,7 @@ impl Template {
         &self,
         frame: &RgbImage,
         center: Point2<f64>,
-        scratch: &mut Vec<f32>,
+        scratch: &mut TemplateScratch,
     ) -> f64 {
         let mut block = [0.0; 9];
         self.ncc_block(frame, anchor(center - self.offset), 1, scratch, &mut block);
@@ -309,7 +355,7 @@ impl Template {
         frame: &RgbImage,
         (cx, cy): (i64, i64),
         reach: usize,
-        scratch: &mut Vec<f32>,
+        scratch: &mut TemplateScratch,
         out: &mut [f64],
     ) {
         let side = 2 * reach + 1;
@@ -317,33 +363,66 @@ impl Template {
         // The wide patch's first column is `cx - width / 2 - reach`: that of the template
         // anchored `reach` pixels to the left.
         let rows = self.height + 2 * reach;
-        patch_at(frame, (cx, cy), stride, rows, scratch);
-        let quick = self.quick_sums(scratch);
-        // The windows' sums from summed-area tables of the patch: gray levels are integers,
-        // so these sums are exact and equal to summing each window.
-        let tables = quick.map(|_| SummedArea::of(scratch, stride, rows));
+        patch_at(frame, (cx, cy), stride, rows, &mut scratch.patch);
+        if let Some(template) = self.quick_sums(&scratch.patch) {
+            match side {
+                3 => return self.quick_block::<3>(template, scratch, stride, out),
+                5 => return self.quick_block::<5>(template, scratch, stride, out),
+                9 => return self.quick_block::<9>(template, scratch, stride, out),
+                _ => {}
+            }
+        }
+        let quick = self
+            .quick_sums(&scratch.patch)
+            .map(|template| Quick { template });
         for (k, o) in out.iter_mut().enumerate().take(side * side) {
             let (u, v) = (k % side, k / side);
-            let quick = quick.map(|template| Quick {
-                template,
-                window: tables
-                    .as_ref()
-                    .map(|t| t.window(u, v, self.width, self.height)),
-            });
             *o = ncc_in(
                 &self.values,
                 self.width,
-                &scratch[v * stride + u..],
+                &scratch.patch[v * stride + u..],
                 stride,
                 quick,
             );
         }
     }
 
+    /// [`Template::ncc_block`]'s quick path for a block `N` windows a side: each row of
+    /// windows summed side by side (the same sums, in the same order, as one at a time).
+    fn quick_block<const N: usize>(
+        &self,
+        (a_sum, a_squares): (f64, f64),
+        scratch: &mut TemplateScratch,
+        stride: usize,
+        out: &mut [f64],
+    ) {
+        let TemplateScratch {
+            patch,
+            template,
+            wide,
+            cols,
+        } = scratch;
+        template.clear();
+        template.extend(self.values.iter().map(|&v| f64::from(v)));
+        wide.clear();
+        wide.extend(patch.iter().map(|&v| f64::from(v)));
+        let sums = window_sums::<N>(wide, stride, (self.width, self.height), cols);
+        let n = self.values.len();
+        for (v, (row, sums)) in out.chunks_mut(N).zip(sums).enumerate() {
+            let products =
+                products_side_by_side::<N>(template, self.width, &wide[v * stride..], stride);
+            for ((o, sab), (sb, sbb)) in row.iter_mut().zip(products).zip(sums) {
+                *o = ncc_of(n, n, [a_sum, sb, a_squares, sbb, sab]);
+            }
+        }
+    }
+
     /// The template's sums for [`ncc_in`]'s quick path against windows of `patch`, when
     /// neither has an unknown pixel.
     fn quick_sums(&self, patch: &[f32]) -> Option<(f64, f64)> {
-        self.sums.filter(|_| patch.iter().all(|v| !v.is_nan()))
+        // A branch-free test over the whole patch, which vectorises.
+        self.sums
+            .filter(|_| patch.iter().fold(true, |known, v| known & !v.is_nan()))
     }
 
     /// Blend the patch at `center` into the template: `t <- (1 - rate) t + rate p`, so that
@@ -354,24 +433,31 @@ impl Template {
         frame: &RgbImage,
         center: Point2<f64>,
         rate: f32,
-        scratch: &mut Vec<f32>,
+        scratch: &mut TemplateScratch,
     ) {
+        let patch = &mut scratch.patch;
         patch_at(
             frame,
             anchor(center - self.offset),
             self.width,
             self.height,
-            scratch,
+            patch,
         );
-        for (t, &p) in self.values.iter_mut().zip(scratch.iter()) {
+        // The blend, and the sums of the blended values in order (as `known_sums`).
+        let (mut sum, mut squares, mut known) = (0.0, 0.0, true);
+        for (t, &p) in self.values.iter_mut().zip(patch.iter()) {
             *t = match (t.is_nan(), p.is_nan()) {
                 (false, false) => *t + rate * (p - *t),
                 (true, _) => p,
                 (false, true) => *t,
             };
+            let v = f64::from(*t);
+            known &= !t.is_nan();
+            sum += v;
+            squares += v * v;
         }
-        self.coarse = coarsen(&self.values, self.width, self.height, self.scale);
-        self.sums = known_sums(&self.values);
+        self.coarse = OnceCell::new();
+        self.sums = known.then_some((sum, squares));
     }
 
     /// The best matches (at most `max`, best first) whose centres lie within `radius_px` of
@@ -383,7 +469,7 @@ impl Template {
         center: Point2<f64>,
         radius_px: f64,
         max: usize,
-        scratch: &mut Vec<f32>,
+        scratch: &mut TemplateScratch,
     ) -> Vec<Match> {
         // A search closer than two coarse cells is done at full resolution.
         let s = if radius_px < 2.0 * self.scale as f64 {
@@ -438,7 +524,8 @@ impl Template {
         // The frame's gray cells under every coarse position of the template.
         let (cw, ch) = (self.width / s, self.height / s);
         let coarse: &[f32] = if s == self.scale {
-            &self.coarse
+            self.coarse
+                .get_or_init(|| coarsen(&self.values, self.width, self.height, self.scale))
         } else {
             &self.values
         };
@@ -473,7 +560,7 @@ impl Template {
         frame: &RgbImage,
         (px, py): (i64, i64),
         s: usize,
-        scratch: &mut Vec<f32>,
+        scratch: &mut TemplateScratch,
     ) -> Option<Match> {
         let reach = s as i64;
         let side = 2 * s + 1;
@@ -498,12 +585,10 @@ impl Template {
             if (0..side as i64).contains(&u) && (0..side as i64).contains(&w) {
                 return block[w as usize * side + u as usize];
             }
-            patch_at(frame, (x, y), self.width, self.height, scratch);
-            let quick = self.quick_sums(scratch).map(|template| Quick {
-                template,
-                window: None,
-            });
-            ncc_in(&self.values, self.width, scratch, self.width, quick)
+            let patch = &mut scratch.patch;
+            patch_at(frame, (x, y), self.width, self.height, patch);
+            let quick = self.quick_sums(patch).map(|template| Quick { template });
+            ncc_in(&self.values, self.width, patch, self.width, quick)
         };
         let sub = |l: f64, c: f64, r: f64| {
             let d = l - 2.0 * c + r;
@@ -613,7 +698,7 @@ mod tests {
     fn correlation_tells_look_alike_markers_apart_by_their_surroundings() {
         let frame = scene(20);
         let t = Template::learn(&frame, Point2::new(23.5, 19.5), 24, 24);
-        let mut s = Vec::new();
+        let mut s = TemplateScratch::default();
         let own = t.ncc(&frame, Point2::new(23.5, 19.5), &mut s);
         let other = t.ncc(&frame, Point2::new(53.5, 19.5), &mut s);
         assert!((own - 1.0).abs() < 1e-9, "{own}");
@@ -643,7 +728,7 @@ mod tests {
         };
         let t = Template::learn(&target(0.0, 0.0), Point2::new(60.0, 50.0), 36, 36);
         assert_eq!(t.scale, 4);
-        let mut s = Vec::new();
+        let mut s = TemplateScratch::default();
         let moved = target(37.4, -12.6);
         let found = t.search(&moved, Point2::new(60.0, 50.0), 60.0, 3, &mut s);
         assert!(!found.is_empty());
@@ -665,7 +750,7 @@ mod tests {
     fn patches_past_the_border_and_flat_patches_are_handled() {
         let frame = scene(20);
         let mut t = Template::learn(&frame, Point2::new(2.0, 2.0), 24, 24);
-        let mut s = Vec::new();
+        let mut s = TemplateScratch::default();
         let v = t.ncc(&frame, Point2::new(2.0, 2.0), &mut s);
         assert!(v.is_finite());
         let flat = RgbImage::from_pixel(100, 40, image::Rgb([50, 50, 50]));
@@ -689,7 +774,7 @@ mod tests {
             image::Rgb([g, g.wrapping_mul(3), 255 - g])
         });
         let mut t = Template::learn(&frame, Point2::new(40.0, 30.0), 13, 11);
-        let mut s = Vec::new();
+        let mut s = TemplateScratch::default();
         t.update(&frame, Point2::new(41.0, 29.0), 0.3, &mut s);
         assert!(t.sums.is_some());
         // Inside the frame (quick path) and over its corner (slow path, unknown pixels).

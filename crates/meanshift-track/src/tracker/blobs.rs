@@ -359,7 +359,7 @@ pub(super) fn template_candidates(
     center: Point2<f64>,
     radius: f64,
     max: usize,
-    scratch: &mut Vec<f32>,
+    scratch: &mut TemplateScratch,
 ) -> Vec<Measured> {
     let (w, h) = m.size;
     t.search(frame, center, radius, max, scratch)

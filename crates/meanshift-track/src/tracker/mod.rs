@@ -63,7 +63,7 @@ use crate::model::{AppearanceModel, MarkerModel, marker_mask};
 use crate::rect::PixelRect;
 use crate::region::{Lookup, Mode, PixelFilter, Region, Streak};
 use crate::swing::Swing;
-use crate::template::Template;
+use crate::template::{Template, TemplateScratch};
 
 mod blobs;
 mod config;
@@ -436,7 +436,7 @@ pub struct Tracker {
     region: Region,
     labeler: Labeler,
     /// Patch scratch for the context correlation.
-    patch: Vec<f32>,
+    patch: TemplateScratch,
     /// The last frame given, where this frame reads it: the background of its streaks.
     previous: Option<PreviousFrame>,
     /// Per pair of markers (row-major `n x n`), how alike they have moved.
@@ -546,7 +546,7 @@ impl Tracker {
             tracks: Vec::with_capacity(markers.len()),
             region: Region::default(),
             labeler: Labeler::default(),
-            patch: Vec::new(),
+            patch: TemplateScratch::default(),
             previous: None,
             coherence: vec![Coherence::default(); markers.len() * markers.len()],
         };
