@@ -329,6 +329,9 @@ pub(crate) struct Region {
     /// Whether the last [`Region::fill_sparse`] found the region cluttered and weighed it
     /// whole.
     pub(crate) cluttered: bool,
+    /// Whether [`Region::locate`] measures the moments of its window and a border (only an
+    /// adaptive window size reads them; each costs a sum over about twice the window).
+    pub(crate) moments_wanted: bool,
 }
 
 /// A block of rows of a region copied out of the frame (and the previous frame), and its
@@ -497,6 +500,15 @@ pub(crate) struct Mode {
 }
 
 impl Region {
+    /// An empty region whose [`Region::locate`] measures its window's moments only when
+    /// `moments_wanted`.
+    pub(crate) fn new(moments_wanted: bool) -> Self {
+        Self {
+            moments_wanted,
+            ..Self::default()
+        }
+    }
+
     /// Compute the weights of `model` over `rect` (clipped to the frame).
     pub(crate) fn fill(
         &mut self,
@@ -862,9 +874,12 @@ impl Region {
                 let eps = criteria.epsilon_px.unwrap_or(1.0).max(0.0);
                 let mut window = PixelRect::centered_at(start, size.0, size.1);
                 let mut center = start;
+                // The sums of the window the loop ended on, when it ended without moving it.
+                let mut last = None;
                 for _ in 0..max_iter {
                     let s = self.sums(window);
                     if s[0] <= 0.0 {
+                        last = Some(s);
                         break;
                     }
                     let c = Point2::new(s[1] / s[0], s[2] / s[0]);
@@ -872,6 +887,7 @@ impl Region {
                     let moved = (c - center).norm();
                     center = c;
                     if next == window {
+                        last = Some(s);
                         break;
                     }
                     window = next;
@@ -879,14 +895,19 @@ impl Region {
                         break;
                     }
                 }
-                let s = self.sums(window);
+                let s = last.unwrap_or_else(|| self.sums(window));
                 if s[0] > 0.0 {
                     center = Point2::new(s[1] / s[0], s[2] / s[0]);
                 }
-                let grown = window.grown(ADAPTIVE_BORDER_PX, ADAPTIVE_BORDER_PX);
-                let g = self.sums(grown);
-                // Central moments do not depend on the origin of the coordinates.
-                let moments = (g[0] > 0.0).then(|| moments_from_f64_sums(g));
+                let moments = self
+                    .moments_wanted
+                    .then(|| {
+                        let grown = window.grown(ADAPTIVE_BORDER_PX, ADAPTIVE_BORDER_PX);
+                        let g = self.sums(grown);
+                        // Central moments do not depend on the origin of the coordinates.
+                        (g[0] > 0.0).then(|| moments_from_f64_sums(g))
+                    })
+                    .flatten();
                 Mode {
                     center,
                     window,

@@ -377,8 +377,12 @@ pub(super) fn template_candidates(
         .collect()
 }
 
-/// Moments of `window` and a 10-pixel border (CamShift's size estimate).
+/// Moments of `window` and a 10-pixel border (CamShift's size estimate), where the region's
+/// moments are wanted (an adaptive window).
 pub(super) fn moments_of(region: &Region, window: PixelRect) -> Option<Moments> {
+    if !region.moments_wanted {
+        return None;
+    }
     let g = region.sums(window.grown(ADAPTIVE_BORDER_PX, ADAPTIVE_BORDER_PX));
     (g[0] > 0.0).then(|| moments_from_f64_sums(g))
 }

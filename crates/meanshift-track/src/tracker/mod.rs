@@ -538,13 +538,14 @@ impl Tracker {
         if markers.is_empty() {
             return Err(TrackError::param("markers", "no marker to track"));
         }
+        let moments_wanted = config.window == WindowMode::Adaptive;
         let mut tracker = Self {
             config,
             width,
             height,
             markers: Vec::with_capacity(markers.len()),
             tracks: Vec::with_capacity(markers.len()),
-            region: Region::default(),
+            region: Region::new(moments_wanted),
             labeler: Labeler::default(),
             patch: TemplateScratch::default(),
             previous: None,
