@@ -33,10 +33,10 @@ const STREAK_FULL_COVERAGE: f32 = 0.5;
 /// Largest distance (8-bit levels) of a streak pixel from the line between background and
 /// marker colour, and as a share of the coverage times the contrast (colour noise, JPEG).
 const STREAK_RESIDUAL: [f32; 2] = [15.0, 0.3];
-/// Pixel step of the sampling pass of [`Region::fill_sparse`], along rows and between rows: a
+/// Pixel step of the sampling pass of a sparse [`Region::fill`], along rows and between rows: a
 /// blob two pixels across in both directions holds a sampled pixel.
 const SPARSE_STEP_PX: usize = 2;
-/// Cells about each cell with a sampled hit that [`Region::fill_sparse`] weighs in full (a
+/// Cells about each cell with a sampled hit that a sparse [`Region::fill`] weighs in full (a
 /// cell is half a marker window): a blob, its edge and the window about its centre.
 const SPARSE_REACH_CELLS: usize = 2;
 /// Share of a sparse fill's cells holding a hit past which the sampling stops and the region
@@ -194,7 +194,7 @@ fn weigh_row<const HSV: bool>(
     features: &impl Fn([u8; 3]) -> [u8; 3],
     row: &[u8],
     background: Option<(Streak<'_>, &[u8])>,
-    hsv_row: &mut Vec<u8>,
+    feature_rows: &mut Vec<u8>,
     planar: &mut Vec<f32>,
     out: &mut [f32],
     bins_out: Option<&mut [u32]>,
@@ -205,7 +205,7 @@ fn weigh_row<const HSV: bool>(
         bins,
         one_channel,
     } = lookup;
-    let planes = feature_planes::<HSV>(row, features, hsv_row);
+    let planes = feature_planes::<HSV>(row, features, feature_rows);
     let one = one_channel.as_deref().map(|o| (o, &o.weight));
     look_up_row(out, planes, 0.0, one, values, tables);
     if let Some((s, background)) = background {
@@ -319,14 +319,14 @@ pub(crate) struct Region {
     pixels: Vec<(i32, i32, u32, f64)>,
     /// One row of the region's features (HSV, RGB or gray) as three planes, converted a row
     /// at a time so that the conversion and the lookups each run in vector lanes.
-    hsv_row: Vec<u8>,
+    feature_rows: Vec<u8>,
     /// A row and its background as channel planes, for the streak weights.
     planar: Vec<f32>,
-    /// Scratch of the sampling pass of [`Region::fill_sparse`].
+    /// Scratch of the sampling pass of a sparse [`Region::fill`].
     scratch: SparseScratch,
     /// Scratch of [`Region::fill_rows`].
     block: BlockScratch,
-    /// Whether the last [`Region::fill_sparse`] found the region cluttered and weighed it
+    /// Whether the last sparse [`Region::fill`] found the region cluttered and weighed it
     /// whole.
     pub(crate) cluttered: bool,
     /// Whether [`Region::locate`] measures the moments of its window and a border (only an
@@ -499,6 +499,25 @@ pub(crate) struct Mode {
     pub(crate) moments: Option<Moments>,
 }
 
+/// A sparse [`Region::fill`]: the weights where they can reach `threshold`, 0 (no bin)
+/// elsewhere. A large region (a lost marker's gate) is first
+/// weighed at every [`SPARSE_STEP_PX`]-th pixel of every [`SPARSE_STEP_PX`]-th row; the
+/// cells (`cell` pixels) holding a sampled pixel at or above `threshold` that the filter
+/// keeps, and the cells within [`SPARSE_REACH_CELLS`] of them, are then weighed in full,
+/// exactly as a full fill weighs them. A blob at or above `threshold` is weighed
+/// whole, with the pixels about it, when its pixels lie within the reach of its sampled
+/// ones: a marker's blob (a few pixels across at the least) does; a component no sampled
+/// pixel falls on (a line one pixel thin, a speck) may be left at 0. A cluttered region
+/// (more than [`SPARSE_MAX_HIT_SHARE`] of its cells hit) is weighed whole, and
+/// [`Region::cluttered`] says so.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Sparse {
+    /// The marker's blob threshold.
+    pub(crate) threshold: f32,
+    /// Cell size (pixels, x and y).
+    pub(crate) cell: (i32, i32),
+}
+
 impl Region {
     /// An empty region whose [`Region::locate`] measures its window's moments only when
     /// `moments_wanted`.
@@ -509,7 +528,9 @@ impl Region {
         }
     }
 
-    /// Compute the weights of `model` over `rect` (clipped to the frame).
+    /// Compute the weights of `model` over `rect` (clipped to the frame): every pixel, or
+    /// with `sparse` only where they can reach its threshold (see [`Sparse`]).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn fill(
         &mut self,
         appearance: &AppearanceModel,
@@ -518,48 +539,9 @@ impl Region {
         frame: &RgbImage,
         rect: PixelRect,
         filter: &PixelFilter<'_>,
+        sparse: Option<Sparse>,
     ) {
-        self.fill_with(appearance, model, lookup, frame, rect, filter, None);
-    }
-
-    /// The weights of `model` over `rect` (clipped to the frame) where they can reach
-    /// `threshold`, 0 (no bin) elsewhere. A large region (a lost marker's gate) is first
-    /// weighed at every [`SPARSE_STEP_PX`]-th pixel of every [`SPARSE_STEP_PX`]-th row; the
-    /// cells (`cell` pixels) holding a sampled pixel at or above `threshold` that the filter
-    /// keeps, and the cells within [`SPARSE_REACH_CELLS`] of them, are then weighed in full,
-    /// exactly as [`Region::fill`] weighs them. A blob at or above `threshold` is weighed
-    /// whole, with the pixels about it, when its pixels lie within the reach of its sampled
-    /// ones: a marker's blob (a few pixels across at the least) does; a component no sampled
-    /// pixel falls on (a line one pixel thin, a speck) may be left at 0. A cluttered region
-    /// (more than [`SPARSE_MAX_HIT_SHARE`] of its cells hit) is weighed whole, and
-    /// [`Region::cluttered`] says so.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn fill_sparse(
-        &mut self,
-        appearance: &AppearanceModel,
-        model: &MarkerModel,
-        lookup: &Lookup,
-        frame: &RgbImage,
-        rect: PixelRect,
-        filter: &PixelFilter<'_>,
-        threshold: f32,
-        cell: (i32, i32),
-    ) {
-        let sparse = Some((threshold, cell));
-        self.fill_with(appearance, model, lookup, frame, rect, filter, sparse);
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn fill_with(
-        &mut self,
-        appearance: &AppearanceModel,
-        model: &MarkerModel,
-        lookup: &Lookup,
-        frame: &RgbImage,
-        rect: PixelRect,
-        filter: &PixelFilter<'_>,
-        sparse: Option<(f32, (i32, i32))>,
-    ) {
+        let sparse = sparse.map(|s| (s.threshold, s.cell));
         let rect = rect.intersect(&PixelRect::image(frame.width(), frame.height()));
         self.rect = rect;
         self.cluttered = false;
@@ -623,7 +605,7 @@ impl Region {
         }
     }
 
-    /// The parts of the region to weigh in full (see [`Region::fill_sparse`]): runs of cells
+    /// The parts of the region to weigh in full (see [`Sparse`]): runs of cells
     /// along each row of cells, as rectangles inside the region; `None` as soon as more than
     /// [`SPARSE_MAX_HIT_SHARE`] of the cells hold a hit.
     #[inline(always)]
@@ -668,7 +650,7 @@ impl Region {
                 features,
                 &scratch.gathered,
                 background,
-                &mut self.hsv_row,
+                &mut self.feature_rows,
                 &mut self.planar,
                 &mut scratch.weights,
                 None,
@@ -745,7 +727,7 @@ impl Region {
             rect,
             weights,
             bins,
-            hsv_row,
+            feature_rows,
             planar,
             block,
             ..
@@ -780,7 +762,7 @@ impl Region {
                     features,
                     &block.pixels,
                     background,
-                    hsv_row,
+                    feature_rows,
                     planar,
                     &mut weights[at..at + n],
                     kernel.then(|| &mut bins[at..at + n]),
@@ -793,7 +775,7 @@ impl Region {
                     features,
                     &block.pixels,
                     background,
-                    hsv_row,
+                    feature_rows,
                     planar,
                     &mut block.weights,
                     kernel.then_some(&mut block.bins[..]),
@@ -1076,8 +1058,8 @@ mod tests {
                     streak: Some(streak),
                 };
                 let (mut all, mut some) = (Region::default(), Region::default());
-                all.fill(&appearance, &model, &lookup, &frame, rect, &open);
-                some.fill(&appearance, &model, &lookup, &frame, rect, &gated);
+                all.fill(&appearance, &model, &lookup, &frame, rect, &open, None);
+                some.fill(&appearance, &model, &lookup, &frame, rect, &gated, None);
                 assert_eq!(some.rect, PixelRect::new(0, 4, 45, 30));
                 let (mut rejected, mut weighed) = (0, 0);
                 for y in some.rect.y..some.rect.bottom() as i32 {
@@ -1218,8 +1200,8 @@ mod tests {
                 ..fast.clone()
             };
             let (mut a, mut b) = (Region::default(), Region::default());
-            a.fill(&appearance, &model, &fast, &frame, rect, &filter);
-            b.fill(&appearance, &model, &general, &frame, rect, &filter);
+            a.fill(&appearance, &model, &fast, &frame, rect, &filter, None);
+            b.fill(&appearance, &model, &general, &frame, rect, &filter, None);
             assert_eq!(a.weights, b.weights, "{appearance:?}");
             let zero = a.weights.iter().filter(|&&w| w == 0.0).count();
             assert!(zero > 0 && zero < a.weights.len(), "{appearance:?}: {zero}");
@@ -1305,18 +1287,10 @@ mod tests {
             }),
         };
         let (mut full, mut sparse) = (Region::default(), Region::default());
-        full.fill(&appearance, model, lookup, frame, rect, &filter);
+        full.fill(&appearance, model, lookup, frame, rect, &filter, None);
         let (threshold, cell) = (TEST_THRESHOLD, (6, 6));
-        sparse.fill_sparse(
-            &appearance,
-            model,
-            lookup,
-            frame,
-            rect,
-            &filter,
-            threshold,
-            cell,
-        );
+        let at = Sparse { threshold, cell };
+        sparse.fill(&appearance, model, lookup, frame, rect, &filter, Some(at));
         (full, sparse)
     }
 

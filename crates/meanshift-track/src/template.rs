@@ -364,7 +364,8 @@ impl Template {
         // anchored `reach` pixels to the left.
         let rows = self.height + 2 * reach;
         patch_at(frame, (cx, cy), stride, rows, &mut scratch.patch);
-        if let Some(template) = self.quick_sums(&scratch.patch) {
+        let sums = self.quick_sums(&scratch.patch);
+        if let Some(template) = sums {
             match side {
                 3 => return self.quick_block::<3>(template, scratch, stride, out),
                 5 => return self.quick_block::<5>(template, scratch, stride, out),
@@ -372,9 +373,8 @@ impl Template {
                 _ => {}
             }
         }
-        let quick = self
-            .quick_sums(&scratch.patch)
-            .map(|template| Quick { template });
+        // Other block sizes (none the tracker asks for), and patches with unknown pixels.
+        let quick = sums.map(|template| Quick { template });
         for (k, o) in out.iter_mut().enumerate().take(side * side) {
             let (u, v) = (k % side, k / side);
             *o = ncc_in(

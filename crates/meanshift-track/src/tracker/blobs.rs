@@ -35,7 +35,7 @@ pub(super) fn changed_share(frame: &RgbImage, previous: &PreviousFrame, holds: P
 }
 
 /// Regions (a lost marker's gate) of more than this many marker windows may be weighed
-/// sparsely: sampled first, and in full only about what was found (`Region::fill_sparse`);
+/// sparsely: sampled first, and in full only about what was found (`region::Sparse`);
 /// a 3x3-window quick region and a gate a few windows wide are weighed whole.
 const SPARSE_MIN_WINDOWS: i64 = 36;
 /// Least cell side of a sparse fill, pixels: past the sampling step and a blob's edge.
@@ -45,7 +45,7 @@ const SPARSE_MIN_CELL_PX: i32 = 4;
 pub(super) const CLUTTER_HOLD_FRAMES: usize = 10;
 
 /// The cells of a sparse fill for marker `m`: half a window (at least
-/// [`SPARSE_MIN_CELL_PX`]), two of them about every hit (`Region::fill_sparse`), so that the
+/// [`SPARSE_MIN_CELL_PX`]), two of them about every hit (`region::Sparse`), so that the
 /// window about a blob's centre and its box grown by a pixel are weighed.
 fn sparse_cell(m: &MarkerState) -> (i32, i32) {
     let (w, h) = m.size;
@@ -92,16 +92,14 @@ pub(super) fn fill(
     };
     let (w, h) = m.size;
     let visible = rect.intersect(&image_rect(frame.width(), frame.height()));
-    if sparse && visible.area() as i64 > SPARSE_MIN_WINDOWS * i64::from(w) * i64::from(h) {
-        let threshold = m.reference.threshold;
-        let cell = sparse_cell(m);
-        let model = &config.model;
-        region.fill_sparse(
-            model, &m.model, &m.lookup, frame, rect, &filter, threshold, cell,
-        );
-    } else {
-        region.fill(&config.model, &m.model, &m.lookup, frame, rect, &filter);
-    }
+    let sparse = (sparse
+        && visible.area() as i64 > SPARSE_MIN_WINDOWS * i64::from(w) * i64::from(h))
+    .then(|| Sparse {
+        threshold: m.reference.threshold,
+        cell: sparse_cell(m),
+    });
+    let model = &config.model;
+    region.fill(model, &m.model, &m.lookup, frame, rect, &filter, sparse);
 }
 
 /// Learn the marker's blob in its first window: threshold, pixel count, width.

@@ -61,7 +61,7 @@ use crate::kalman::Kalman;
 use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
 use crate::model::{AppearanceModel, MarkerModel, marker_mask};
 use crate::rect::PixelRect;
-use crate::region::{Lookup, Mode, PixelFilter, Region, Streak};
+use crate::region::{Lookup, Mode, PixelFilter, Region, Sparse, Streak};
 use crate::swing::Swing;
 use crate::template::{Template, TemplateScratch};
 
