@@ -99,6 +99,47 @@ impl Tracker {
     /// look-alike of its was seen while it was elsewhere). The place becomes a known static
     /// look-alike (the quick pass no longer accepts it, detection prices it), those frames
     /// are revised to `predicted`, and the marker is looked for where it swings.
+    /// A detection two frames back, on a place where the marker once turned down a
+    /// look-alike, that the track then left by a jump to run on from somewhere else, was
+    /// that look-alike taken for one frame (a marker coming out from behind something is
+    /// found first where its prediction ran on to): the frame is revised to `predicted`, at
+    /// the place the two frames since lead back to. Only a look-alike counts as the
+    /// culprit: right after a release or at a swing's end filmed at 15 fps a marker turns
+    /// by several windows a frame, so a sharp turn alone says nothing.
+    pub(super) fn revise_excursions(&mut self) {
+        for (m, track) in self.markers.iter().zip(&mut self.tracks) {
+            let obs = &mut track.observations;
+            let Some(k) = obs.len().checked_sub(3) else {
+                continue;
+            };
+            let (excursion, next, last) = (&obs[k], &obs[k + 1], &obs[k + 2]);
+            if excursion.status != TrackStatus::Recovered
+                || !next.status.found()
+                || !last.status.found()
+            {
+                continue;
+            }
+            let (Some(p), Some(a), Some(b)) = (excursion.center, next.center, last.center) else {
+                continue;
+            };
+            let side = window_px(m);
+            let back = a - (b - a);
+            let on_look_alike = m
+                .distractors
+                .iter()
+                .any(|d| (d.at - p).norm() <= EXCURSION_LOOK_ALIKE_WINDOWS * side);
+            if on_look_alike
+                && (p - a).norm() > PARKED_JUMP_WINDOWS * side
+                && (p - back).norm() > EXCURSION_WINDOWS * side
+            {
+                let o = &mut obs[k];
+                o.status = TrackStatus::Predicted;
+                o.confidence = 0.0;
+                o.center = Some(back);
+            }
+        }
+    }
+
     pub(super) fn learn_parked(&mut self) {
         for (m, track) in self.markers.iter_mut().zip(&mut self.tracks) {
             let Some(parked) = parked_at(m, &track.observations) else {
@@ -120,8 +161,7 @@ impl Tracker {
             }
             // Those frames were the look-alike's: not found, and the marker is looked for
             // as one missing since then.
-            let len = track.observations.len();
-            for o in &mut track.observations[len - PARKED_FRAMES..] {
+            for o in &mut track.observations[parked.since..] {
                 o.status = TrackStatus::Predicted;
                 o.confidence = 0.0;
             }
@@ -396,6 +436,9 @@ struct Parked {
     /// Whether detection took it there by a jump of more than [`PARKED_JUMP_WINDOWS`]
     /// windows (rather than the quick pass following it there).
     jumped_in: bool,
+    /// The first frame of the stay: where detection threw the track, when that was before
+    /// the last [`PARKED_FRAMES`] frames, else the first of them.
+    since: usize,
 }
 
 /// Where the track has stood still, found on at least [`PARKED_MIN_FOUND`] of the last
@@ -420,18 +463,29 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     if !still || (at - m.home).norm() <= HOME_NEAR_WINDOWS * side {
         return None;
     }
-    let jumped_in = obs[start.saturating_sub(1)..].windows(2).any(|w| {
+    let thrown = |w: &[Observation]| {
         followed(&w[1])
             && w[1].status != TrackStatus::Tracked
             && matches!((w[0].center, w[1].center), (Some(a), Some(b))
                 if (b - a).norm() > PARKED_JUMP_WINDOWS * side)
-    });
+    };
+    // The stay began where the track came to this place: possibly before these frames, when
+    // the first of a still stretch jittered by more than `PARKED_PX` (a look-alike measured
+    // through noise and JPEG artefacts).
+    let stay_px = PARKED_STAY_WINDOWS * side;
+    let entered = (obs.len().saturating_sub(PARKED_LOOKBACK_FRAMES).max(1)..obs.len())
+        .rev()
+        .find(|&k| obs[k - 1].center.is_none_or(|c| (c - at).norm() > stay_px));
+    let thrown_before = entered.filter(|&k| k < start && thrown(&obs[k - 1..=k]));
+    let jumped_in =
+        thrown_before.is_some() || obs[start.saturating_sub(1)..].windows(2).any(thrown);
     Some(Parked {
         at,
         bounds: found()
             .next_back()
             .map_or(PixelRect::centered_at(at, m.size.0, m.size.1), |f| f.1),
         jumped_in,
+        since: thrown_before.unwrap_or(start),
     })
 }
 
@@ -566,6 +620,92 @@ mod tests {
         t.learn_parked();
         assert!(!t.markers[0].on_distractor(there));
         assert_eq!(t.markers[0].misses, 0);
+        Ok(())
+    }
+
+    #[test]
+    fn a_track_thrown_onto_a_place_it_jittered_on_at_first_is_parked_from_the_throw() -> Result<()>
+    {
+        let (mut t, side, home) = setup()?;
+        let there = Point2::new(home.x + 6.0 * side, home.y + 2.0);
+        park(&mut t, home, 3);
+        // Thrown there by detection; its first frames there jitter by more than the still
+        // test allows, so the last `PARKED_FRAMES` frames no longer hold the throw.
+        let jitter = Point2::new(there.x + 1.5 * PARKED_PX, there.y);
+        park(&mut t, jitter, 3);
+        park(&mut t, there, PARKED_FRAMES - 1);
+        let len = t.tracks[0].observations.len();
+        let thrown_at = len - PARKED_FRAMES - 2;
+        t.tracks[0].observations[thrown_at].status = TrackStatus::Recovered;
+        t.learn_parked();
+        assert!(!t.markers[0].on_distractor(there));
+        park(&mut t, there, 1);
+        t.learn_parked();
+        assert!(t.markers[0].on_distractor(there));
+        // Every frame since the throw was the look-alike's, not only the last eight.
+        let obs = &t.tracks[0].observations;
+        assert!(
+            obs[thrown_at..]
+                .iter()
+                .all(|o| o.status == TrackStatus::Predicted)
+        );
+        assert_eq!(obs[thrown_at - 1].status, TrackStatus::Tracked);
+        // The same stay reached by the quick pass (no throw) is a pull held there.
+        let (mut t, _, _) = setup()?;
+        park(&mut t, home, 3);
+        park(&mut t, jitter, 3);
+        park(&mut t, there, PARKED_FRAMES);
+        t.learn_parked();
+        assert!(!t.markers[0].on_distractor(there));
+        assert!(all_tracked(&t, 0));
+        Ok(())
+    }
+
+    /// A's track: found at each of `places` in turn, detection's first, the quick pass's
+    /// after; then the excursion rule.
+    fn found_at(t: &mut Tracker, places: &[Point2<f64>]) {
+        for (k, &p) in places.iter().enumerate() {
+            park(t, p, 1);
+            if k == 0 {
+                let obs = &mut t.tracks[0].observations;
+                let last = obs.len() - 1;
+                obs[last].status = TrackStatus::Recovered;
+            }
+            t.revise_excursions();
+        }
+    }
+
+    #[test]
+    fn a_detection_the_track_jumped_away_from_for_good_is_revised() -> Result<()> {
+        let (mut t, side, home) = setup()?;
+        park(&mut t, home, 2);
+        // Detection took A onto a look-alike 5 windows off, one it had turned down before;
+        // the next two frames find it running on from where those two lead back to, 1
+        // window a frame.
+        let look_alike = Point2::new(home.x + 5.0 * side, home.y);
+        let step = Vector2::new(0.0, side);
+        let seen = Point2::new(look_alike.x + 0.4 * side, look_alike.y);
+        let bounds = PixelRect::centered_at(seen, 11, 11);
+        remember_distractor(&mut t.markers[0], seen, bounds, side);
+        found_at(&mut t, &[look_alike, home + step, home + 2.0 * step]);
+        let o = t.tracks[0].observations[3];
+        assert_eq!(o.status, TrackStatus::Predicted);
+        assert_eq!(o.confidence, 0.0);
+        assert_eq!(o.center, Some(home));
+        // The same jump where no look-alike was seen (a release, a swing's end at 15 fps)
+        // is not revised, nor is a jump onto the look-alike the frames after continue from.
+        let (mut t, _, _) = setup()?;
+        park(&mut t, home, 2);
+        found_at(&mut t, &[look_alike, home + step, home + 2.0 * step]);
+        assert_eq!(t.tracks[0].observations[3].status, TrackStatus::Recovered);
+        let (mut t, _, _) = setup()?;
+        park(&mut t, home, 2);
+        remember_distractor(&mut t.markers[0], seen, bounds, side);
+        found_at(
+            &mut t,
+            &[look_alike, look_alike + step, look_alike + 2.0 * step],
+        );
+        assert_eq!(t.tracks[0].observations[3].status, TrackStatus::Recovered);
         Ok(())
     }
 

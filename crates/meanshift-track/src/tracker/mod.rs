@@ -266,6 +266,17 @@ const PARKED_MIN_FOUND: usize = 6;
 /// A track taken by detection to a place more than this many windows from where it was
 /// (and parked there) was not followed there.
 const PARKED_JUMP_WINDOWS: f64 = 2.0;
+/// Distance (windows) from where the two frames after it lead back to, past which a
+/// detection on a look-alike that the track jumped away from was a one-frame excursion.
+const EXCURSION_WINDOWS: f64 = 3.0;
+/// Distance (windows) from a look-alike the marker once turned down within which a
+/// one-frame excursion is on it (a half-covered look-alike is measured a few pixels off).
+const EXCURSION_LOOK_ALIKE_WINDOWS: f64 = 0.5;
+/// Frames looked back, at most, for where a parked track came to its place.
+const PARKED_LOOKBACK_FRAMES: usize = 4 * PARKED_FRAMES;
+/// Distance (windows) from a parked track's place within which its earlier centres count as
+/// the same stay (a look-alike's measured centre jitters by a few pixels).
+const PARKED_STAY_WINDOWS: f64 = 0.5;
 /// Largest distance (pixels) of each of those centres from their mean for the track to
 /// stand still (a parked window jitters by a pixel with noise and JPEG artefacts).
 const PARKED_PX: f64 = 2.0;
@@ -706,6 +717,7 @@ impl Tracker {
         let merged = self.merged_markers(&results, &predictions);
         self.record(frame, depth, results, &merged);
         self.learn_parked();
+        self.revise_excursions();
         self.repair_swaps();
         Ok(())
     }
