@@ -171,6 +171,28 @@ pub(super) fn learn_blob(
     }
 }
 
+/// Learn the marker's blob from the pixels of its first window alone (at or above the
+/// learnt threshold): where its blob in the frame runs on into something touching it, the
+/// blob's count and weight are not the marker's.
+pub(super) fn learn_blob_in_window(m: &mut MarkerState, region: &Region, window: PixelRect) {
+    let w = window.intersect(&region.rect);
+    let threshold = m.reference.threshold;
+    let (mut pixels, mut mass) = (0usize, 0.0f64);
+    for y in w.y..w.bottom() as i32 {
+        for x in w.x..w.right() as i32 {
+            let v = region.weights[region.index(x, y)];
+            if v >= threshold {
+                pixels += 1;
+                mass += f64::from(v);
+            }
+        }
+    }
+    if pixels > 0 {
+        m.reference.pixels = pixels as f64;
+        m.reference.pixel_weight = mass / pixels as f64;
+    }
+}
+
 /// The gap a marker's blob must bridge where the image has holes (pixels with no data,
 /// black, as a projection image where no point projected): around `window` (a window on
 /// every side), more than [`HOLES_SPARSE`] holes need 2 pixels, more than [`HOLES_SPLATTED`]

@@ -68,11 +68,21 @@ impl Tracker {
             }
         } else if config.recovery {
             let near = |c: &Measured| (c.center - mode.center).norm();
-            candidates_in(&mut self.region, &mut self.labeler, &state, None, &[])
+            let nearest = candidates_in(&mut self.region, &mut self.labeler, &state, None, &[])
                 .into_iter()
                 .filter(|c| c.holds.intersect(&w).area() > 0)
-                .min_by(|a, b| near(a).total_cmp(&near(b)))
-                .unwrap_or_else(|| plain(&self.region, mode))
+                .min_by(|a, b| near(a).total_cmp(&near(b)));
+            match nearest {
+                // A blob whose centre mean-shift in the window does not come near is the
+                // marker merged with something touching it (a look-alike beside it): the
+                // marker is what the window holds, and mean-shift's centre is its centre.
+                Some(c) if near(&c) > INIT_MERGED_WINDOWS * window_px(&state) => {
+                    learn_blob_in_window(&mut state, &self.region, w);
+                    plain(&self.region, mode)
+                }
+                Some(c) => c,
+                None => plain(&self.region, mode),
+            }
         } else {
             plain(&self.region, mode)
         };
@@ -161,5 +171,57 @@ impl Tracker {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A red disc of radius 6 px at (40, 32) on grey, with a barely darker red disc of
+    /// the same size touching it at (`beside_x`, 32), and the marker's first window on the
+    /// red one.
+    fn marker_beside(beside_x: u32) -> Result<Tracker> {
+        let frame = RgbImage::from_fn(112, 64, |x, y| {
+            let on = |cx: u32| {
+                let (dx, dy) = (f64::from(x) - f64::from(cx), f64::from(y) - 32.0);
+                dx * dx + dy * dy <= 36.0
+            };
+            if on(40) {
+                image::Rgb([215, 25, 30])
+            } else if on(beside_x) {
+                image::Rgb([205, 28, 32])
+            } else {
+                image::Rgb([100, 110, 95])
+            }
+        });
+        let init = MarkerInit {
+            id: "A".into(),
+            window: PixelRect::new(33, 25, 15, 15),
+        };
+        Tracker::new(TrackerConfig::default(), &frame, None, &[init])
+    }
+
+    #[test]
+    fn a_look_alike_touching_the_first_window_is_not_learnt_as_the_marker() -> Result<()> {
+        let truth = Point2::new(40.0, 32.0);
+        // Apart, the marker's blob is its own (113 pixels).
+        let apart = marker_beside(80)?;
+        let alone = apart.markers[0].reference.pixels;
+        assert!((90.0..=140.0).contains(&alone), "{alone}");
+        // Touching: the merged blob's centre would be 3 px toward the other disc, and its
+        // pixels twice the marker's; the first frame's centre and blob are the window's.
+        let t = marker_beside(52)?;
+        let center = t.tracks[0].observations[0]
+            .center
+            .unwrap_or(Point2::origin());
+        assert!(
+            (center - truth).norm() < 2.5,
+            "{center} {}",
+            t.markers[0].reference.pixels
+        );
+        let pixels = t.markers[0].reference.pixels;
+        assert!(pixels <= 1.3 * alone, "{pixels} against {alone}");
+        Ok(())
     }
 }

@@ -272,6 +272,9 @@ const EXCURSION_WINDOWS: f64 = 3.0;
 /// Distance (windows) from a look-alike the marker once turned down within which a
 /// one-frame excursion is on it (a half-covered look-alike is measured a few pixels off).
 const EXCURSION_LOOK_ALIKE_WINDOWS: f64 = 0.5;
+/// Distance (windows) between the first window's mean-shift centre and the nearest blob's
+/// centre past which that blob is the marker merged with something touching it.
+const INIT_MERGED_WINDOWS: f64 = 0.25;
 /// Frames looked back, at most, for where a parked track came to its place.
 const PARKED_LOOKBACK_FRAMES: usize = 4 * PARKED_FRAMES;
 /// Distance (windows) from a parked track's place within which its earlier centres count as
