@@ -756,30 +756,32 @@ impl Region {
             }
             let background = previous.map(|(s, _)| (s, &block.background[..]));
             let at = (y0 - rect.y) as usize * rect.width as usize + (sub.x - rect.x) as usize;
-            if contiguous {
-                weigh_row::<HSV>(
-                    lookup,
-                    features,
-                    &block.pixels,
-                    background,
-                    feature_rows,
-                    planar,
+            // Rows that lie one after the other in the region are weighed in place; a
+            // narrower part's rows through the block's buffers, then copied out.
+            let (out, bins_out) = if contiguous {
+                (
                     &mut weights[at..at + n],
                     kernel.then(|| &mut bins[at..at + n]),
-                );
+                )
             } else {
                 block.weights.resize(n, 0.0);
                 block.bins.resize(if kernel { n } else { 0 }, NO_BIN);
-                weigh_row::<HSV>(
-                    lookup,
-                    features,
-                    &block.pixels,
-                    background,
-                    feature_rows,
-                    planar,
-                    &mut block.weights,
+                (
+                    &mut block.weights[..],
                     kernel.then_some(&mut block.bins[..]),
-                );
+                )
+            };
+            weigh_row::<HSV>(
+                lookup,
+                features,
+                &block.pixels,
+                background,
+                feature_rows,
+                planar,
+                out,
+                bins_out,
+            );
+            if !contiguous {
                 for (j, w) in block.weights.chunks_exact(width).enumerate() {
                     let to = at + j * rect.width as usize;
                     weights[to..to + width].copy_from_slice(w);

@@ -102,6 +102,13 @@ pub(super) fn fill(
     region.fill(model, &m.model, &m.lookup, frame, rect, &filter, sparse);
 }
 
+/// The region's weights over the part of `window` inside it, row by row.
+fn window_weights(region: &Region, window: PixelRect) -> impl Iterator<Item = f32> + '_ {
+    let w = window.intersect(&region.rect);
+    (w.y..w.bottom() as i32)
+        .flat_map(move |y| (w.x..w.right() as i32).map(move |x| region.weights[region.index(x, y)]))
+}
+
 /// Learn the marker's blob in its first window: threshold, pixel count, width.
 pub(super) fn learn_blob(
     m: &mut MarkerState,
@@ -110,16 +117,9 @@ pub(super) fn learn_blob(
     window: PixelRect,
 ) {
     // The marker's pixels: the heaviest tenth of the window sets the scale.
-    let mut inside: Vec<f32> = Vec::new();
-    let w = window.intersect(&region.rect);
-    for y in w.y..w.bottom() as i32 {
-        for x in w.x..w.right() as i32 {
-            let v = region.weights[region.index(x, y)];
-            if v > 0.0 {
-                inside.push(v);
-            }
-        }
-    }
+    let mut inside: Vec<f32> = window_weights(region, window)
+        .filter(|&v| v > 0.0)
+        .collect();
     if inside.is_empty() {
         return;
     }
@@ -175,18 +175,10 @@ pub(super) fn learn_blob(
 /// learnt threshold): where its blob in the frame runs on into something touching it, the
 /// blob's count and weight are not the marker's.
 pub(super) fn learn_blob_in_window(m: &mut MarkerState, region: &Region, window: PixelRect) {
-    let w = window.intersect(&region.rect);
     let threshold = m.reference.threshold;
-    let (mut pixels, mut mass) = (0usize, 0.0f64);
-    for y in w.y..w.bottom() as i32 {
-        for x in w.x..w.right() as i32 {
-            let v = region.weights[region.index(x, y)];
-            if v >= threshold {
-                pixels += 1;
-                mass += f64::from(v);
-            }
-        }
-    }
+    let (pixels, mass) = window_weights(region, window)
+        .filter(|&v| v >= threshold)
+        .fold((0usize, 0.0f64), |(n, s), v| (n + 1, s + f64::from(v)));
     if pixels > 0 {
         m.reference.pixels = pixels as f64;
         m.reference.pixel_weight = mass / pixels as f64;

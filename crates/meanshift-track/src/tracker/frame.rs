@@ -92,13 +92,6 @@ impl Tracker {
         }
     }
 
-    /// A marker whose track has stood still for [`PARKED_FRAMES`] frames, away from its home,
-    /// on a place where it once turned down a look-alike or where detection threw it by a
-    /// jump, is parked on a look-alike: a branch marker at rest stands at its home, and one
-    /// held away from it got there by moving (followed by the quick pass, where no
-    /// look-alike of its was seen while it was elsewhere). The place becomes a known static
-    /// look-alike (the quick pass no longer accepts it, detection prices it), those frames
-    /// are revised to `predicted`, and the marker is looked for where it swings.
     /// A detection two frames back, on a place where the marker once turned down a
     /// look-alike, that the track then left by a jump to run on from somewhere else, was
     /// that look-alike taken for one frame (a marker coming out from behind something is
@@ -140,6 +133,13 @@ impl Tracker {
         }
     }
 
+    /// A marker whose track has stood still for [`PARKED_FRAMES`] frames, away from its home,
+    /// on a place where it once turned down a look-alike or where detection threw it by a
+    /// jump, is parked on a look-alike: a branch marker at rest stands at its home, and one
+    /// held away from it got there by moving (followed by the quick pass, where no
+    /// look-alike of its was seen while it was elsewhere). The place becomes a known static
+    /// look-alike (the quick pass no longer accepts it, detection prices it), the frames since it came
+    /// there are revised to `predicted`, and the marker is looked for where it swings.
     pub(super) fn learn_parked(&mut self) {
         for (m, track) in self.markers.iter_mut().zip(&mut self.tracks) {
             let Some(parked) = parked_at(m, &track.observations) else {
