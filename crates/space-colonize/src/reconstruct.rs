@@ -11,7 +11,9 @@ use crate::ground::Ground;
 use crate::grow::{Pass, grow};
 use crate::levels::{Levels, grow_levels};
 use crate::metrics::NEAR_CLOUD_M;
-use crate::refine::{Graph, far_tails, twig_stubs, unneeded_stubs};
+use crate::refine::{
+    Centring, Graph, ONE_SIDED_TANGENT_SPAN, far_tails, twig_stubs, unneeded_stubs,
+};
 use crate::skeleton::{Branch, Skeleton, SkeletonNode};
 use crate::wood::Leaves;
 
@@ -243,6 +245,12 @@ pub fn reconstruct_with_progress(
     // tree13 and Paris 2 points of model near the cloud), and in one-sided views the half
     // rings by a fork gave one coffee view 18 % more volume.
     let near_forks = config.centre_forks && !levels && !p.one_sided;
+    // Cross-sections of a one-sided view's colonization chains are taken over a longer span.
+    let span = if p.one_sided && !levels {
+        ONE_SIDED_TANGENT_SPAN
+    } else {
+        1
+    };
     let refine = |graph: &mut Graph, from: usize| {
         // Level-set tips are already at the last points of their twig.
         if !(levels && from == 0) {
@@ -264,8 +272,11 @@ pub fn reconstruct_with_progress(
                 &prep.main,
                 &p,
                 from,
-                !levels,
-                near_forks && from == 0,
+                Centring {
+                    centroid_fallback: !levels,
+                    near_forks: near_forks && from == 0,
+                    span,
+                },
             );
         }
         if !(levels && from == 0) {
@@ -338,7 +349,7 @@ pub fn reconstruct_with_progress(
         // With the radii known, fit circles of those radii: thin branches of one-sided views
         // had only centroids.
         let r: Vec<f64> = skeleton.nodes().iter().map(|n| n.radius_m).collect();
-        graph.centre_on_radius(&prep.pts, &prep.main, &r);
+        graph.centre_on_radius(&prep.pts, &prep.main, &r, span);
         if !levels {
             graph.smooth_from(config.smoothing_iterations, 0, true);
         }

@@ -68,8 +68,30 @@ pub(crate) const MAX_FIT_PER_PIPE_MEDIAN: f64 = 4.0;
 /// 2.65 mm and the synthetic evaluation trees 7.65 mm of axis error; passing up to 3,
 /// 2.60 mm and 7.14 mm.
 const FORK_WALK_STEPS: usize = 3;
+/// In a one-sided view grown by colonization, a chain node is centred across the direction
+/// from the node this many steps back to the one this many ahead (see [`Graph::tangent`]),
+/// not from its parent to its child: nodes drawn to the seen half of a thick branch wander
+/// sideways across it, and a cross-section taken across that wandering cuts the branch
+/// lengthwise (on one coffee view a 35 mm limb was followed by a chain that turned sideways
+/// for five nodes, measured 13–20 mm there, and the taper along it ran down to 8 mm). Chosen
+/// among 1–4 on the coffee views and synthetic Kinect views (`docs/validation.md`). Full
+/// scans keep 1 (at 3 the synthetic evaluation trees' axis error went 7.2 → 7.8 mm), and so
+/// do level sets, whose nodes are patch centres (at 3 tree13 and Paris lost 0.2 points of
+/// model near the cloud).
+pub(crate) const ONE_SIDED_TANGENT_SPAN: usize = 3;
 /// Centring passes (the assignment of points to nodes is redone between them).
 const CENTRING_PASSES: usize = 4;
+
+/// How [`Graph::centre`] treats nodes without a circle, forks, and the branch direction.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Centring {
+    /// Where no circle fits, move the node to its cross-section's centroid.
+    pub centroid_fallback: bool,
+    /// Centre the nodes next to forks and put forks on their parent's axis.
+    pub near_forks: bool,
+    /// Chain nodes each way over which the branch direction is taken (1: parent to child).
+    pub span: usize,
+}
 
 /// The working graph: parents always before children.
 #[derive(Debug, Clone)]
@@ -126,11 +148,25 @@ impl Graph {
         Assignment { start, items }
     }
 
-    /// Unit direction of the branch at a node: from its parent to its only child, else from
-    /// its parent to it, else (the root) to its first child.
-    fn tangent(&self, i: usize, children: &[Vec<usize>]) -> Option<Vector3<f64>> {
+    /// Unit direction of the branch at a node: at a chain node (one parent, one child) from
+    /// the node `span` steps back to the one `span` steps ahead along the chain (fewer where
+    /// the chain ends at a fork or tip; `span` 1: parent to child), else from its parent to
+    /// it, else (the root) to its first child.
+    fn tangent(&self, i: usize, children: &[Vec<usize>], span: usize) -> Option<Vector3<f64>> {
         let d = match (self.parent[i], children[i].as_slice()) {
-            (Some(p), [c]) => self.pos[*c] - self.pos[p],
+            (Some(p), [c]) => {
+                // Up to `span` nodes each way along the chain (not past a fork).
+                let (mut back, mut ahead) = (p, *c);
+                for _ in 1..span {
+                    if let (Some(pp), [_]) = (self.parent[back], children[back].as_slice()) {
+                        back = pp;
+                    }
+                    if let [cc] = children[ahead].as_slice() {
+                        ahead = *cc;
+                    }
+                }
+                self.pos[ahead] - self.pos[back]
+            }
             (Some(p), _) => self.pos[i] - self.pos[p],
             (None, [c, ..]) => self.pos[*c] - self.pos[i],
             (None, []) => return None,
@@ -152,7 +188,7 @@ impl Graph {
             .filter(|&i| children[i].is_empty() && self.parent[i].is_some())
             .collect();
         for t in tips {
-            let Some(dir) = self.tangent(t, &children) else {
+            let Some(dir) = self.tangent(t, &children, 1) else {
                 continue;
             };
             let base = self.pos[t];
@@ -199,13 +235,13 @@ impl Graph {
     fn cross_section(
         &self,
         i: usize,
-        a: &Assignment,
+        (a, pts): (&Assignment, &[[f64; 3]]),
         children: &[Vec<usize>],
-        pts: &[[f64; 3]],
         plane: &mut Vec<[f64; 2]>,
         skip_forks: bool,
+        span: usize,
     ) -> Option<(Vector3<f64>, Vector3<f64>)> {
-        let t = self.tangent(i, children)?;
+        let t = self.tangent(i, children, span)?;
         let u = t
             .cross(&Vector3::z())
             .try_normalize(1e-9)
@@ -231,10 +267,11 @@ impl Graph {
     }
 
     /// Move nodes from index `from` on onto the branch axis: a circle fitted to the points a node and its
-    /// neighbours own, in the plane across the branch; where no circle fits (thin branches),
-    /// the centroid of those points if `centroid_fallback`, else the node stays.
+    /// neighbours own, in the plane across the branch (taken over `how.span` chain nodes each
+    /// way, see [`Self::tangent`]); where no circle fits (thin branches), the centroid of those
+    /// points if `how.centroid_fallback`, else the node stays.
     ///
-    /// A fork's points belong to two branches. Without `near_forks`, forks and the nodes
+    /// A fork's points belong to two branches. Without `how.near_forks`, forks and the nodes
     /// next to them stay where growth put them; with it, the nodes next to a fork are
     /// centred on their own points and their other neighbour's, and the fork is put on its
     /// parent branch's axis (see [`Self::forks_onto_axes`]).
@@ -245,8 +282,7 @@ impl Graph {
         keep: &[bool],
         p: &Parameters,
         from: usize,
-        centroid_fallback: bool,
-        near_forks: bool,
+        how: Centring,
     ) {
         for _ in 0..CENTRING_PASSES {
             let a = self.assign(pts, keep);
@@ -257,10 +293,11 @@ impl Graph {
             let mut axis_radius = vec![0.0; self.pos.len()];
             for i in from..self.pos.len() {
                 let by_fork = near_fork(i, &self.parent, &children);
-                if by_fork && (!near_forks || children[i].len() > 1) {
+                if by_fork && (!how.near_forks || children[i].len() > 1) {
                     continue; // forks mix the points of two branches
                 }
-                let Some((u, v)) = self.cross_section(i, &a, &children, pts, &mut plane, by_fork)
+                let Some((u, v)) =
+                    self.cross_section(i, (&a, pts), &children, &mut plane, by_fork, how.span)
                 else {
                     continue;
                 };
@@ -270,7 +307,7 @@ impl Graph {
                 let circle = fit_circle(&plane).filter(|c| usable(c, p));
                 let centre = match circle {
                     Some(c) => c.centre,
-                    None if !centroid_fallback => continue,
+                    None if !how.centroid_fallback => continue,
                     // Too few points or too thin for a circle: the centroid of the cross
                     // section, which is on the axis of a branch about a spacing thick.
                     None => {
@@ -288,7 +325,7 @@ impl Graph {
                 axis_radius[i] = reach;
                 moved[i] += u * centre[0] + v * centre[1];
             }
-            if near_forks {
+            if how.near_forks {
                 self.forks_onto_axes(&mut moved, &children, from, &a, pts, &axis_radius);
             }
             self.pos = moved;
@@ -358,7 +395,13 @@ impl Graph {
     /// radius through their cross-section (a least-squares cylinder of known radius), in
     /// [`CENTRING_PASSES`] passes. After the radii are known this places thin branches
     /// of one-sided views, where [`Self::centre`] has only centroids.
-    pub(crate) fn centre_on_radius(&mut self, pts: &[[f64; 3]], keep: &[bool], radius_m: &[f64]) {
+    pub(crate) fn centre_on_radius(
+        &mut self,
+        pts: &[[f64; 3]],
+        keep: &[bool],
+        radius_m: &[f64],
+        span: usize,
+    ) {
         for _ in 0..CENTRING_PASSES {
             let a = self.assign(pts, keep);
             let children = self.children();
@@ -368,7 +411,8 @@ impl Graph {
                 if near_fork(i, &self.parent, &children) {
                     continue;
                 }
-                let Some((u, v)) = self.cross_section(i, &a, &children, pts, &mut plane, false)
+                let Some((u, v)) =
+                    self.cross_section(i, (&a, pts), &children, &mut plane, false, span)
                 else {
                     continue;
                 };
@@ -397,7 +441,7 @@ impl Graph {
                 if children[i].len() > 1 {
                     return None;
                 }
-                let (u, v) = self.cross_section(i, &a, &children, pts, &mut plane, false)?;
+                let (u, v) = self.cross_section(i, (&a, pts), &children, &mut plane, false, 1)?;
                 let fit = fit_circle(&plane).filter(|c| usable(c, p)).filter(|c| {
                     c.points >= RELIABLE_FIT_POINTS
                         && c.rms_m < RELIABLE_FIT_RMS_PER_RADIUS * c.radius_m
@@ -452,8 +496,10 @@ impl Graph {
     /// Radii per chain (the nodes between two forks): a straight taper r(s) = a + b·s fitted
     /// to the chain's measured radii by least squares, once more without those beyond 2.5
     /// median absolute deviations, with b ≤ 0 (a branch does not thicken toward its tip; a
-    /// rising fit becomes the median). Chains with fewer than [`MIN_TAPER_FITS`] measurements
-    /// stay unmeasured.
+    /// rising fit becomes the median). Before the chain's first measured node and after its
+    /// last the radius is held at the line's value there, not extrapolated (a chain measured
+    /// only near its top could otherwise run to several times its width at its base). Chains
+    /// with fewer than [`MIN_TAPER_FITS`] measurements stay unmeasured.
     fn taper_fit(&self, raw: &[Option<f64>], children: &[Vec<usize>]) -> Vec<Option<f64>> {
         let n = self.pos.len();
         let mut out = vec![None; n];
@@ -484,12 +530,13 @@ impl Graph {
             let Some((a, b)) = robust_taper(&samples) else {
                 continue;
             };
+            let (first_s, last_s) = (samples[0].0, samples[samples.len() - 1].0);
             let mut s = 0.0;
             for (k, &v) in chain.iter().enumerate() {
                 if k > 0 {
                     s += (self.pos[v] - self.pos[chain[k - 1]]).norm();
                 }
-                let r = a + b * s;
+                let r = a + b * s.clamp(first_s, last_s);
                 if r > 0.0 {
                     out[v] = Some(r);
                 }

@@ -249,3 +249,72 @@ fn a_one_sided_views_short_arcs_measure_where_the_noise_is_small_against_them() 
     let seen = g.fit_radii(&pts, &keep, &arc_parameters(true));
     assert!(arc_radii(&seen).iter().all(Option::is_none), "{seen:?}");
 }
+
+#[test]
+fn a_chains_taper_is_not_carried_past_its_measured_stretch() {
+    // A straight chain up z in 2 cm steps, measured only on nodes 10..=15, where the radius
+    // falls from 30 to 20 mm.
+    let pos: Vec<Vector3<f64>> = (0..=20)
+        .map(|k| Vector3::new(0.0, 0.0, 0.02 * f64::from(k)))
+        .collect();
+    let parent: Vec<Option<usize>> = (0_usize..=20).map(|k| k.checked_sub(1)).collect();
+    let g = Graph {
+        bridge: vec![false; pos.len()],
+        pos,
+        parent,
+    };
+    let raw: Vec<Option<f64>> = (0..=20_u32)
+        .map(|k| {
+            (10..=15)
+                .contains(&k)
+                .then(|| 0.030 - 0.002 * f64::from(k - 10))
+        })
+        .collect();
+    let out = g.taper_fit(&raw, &g.children());
+    // The line itself is kept where it was measured ...
+    assert!((out[10].unwrap() - 0.030).abs() < 1e-9, "{out:?}");
+    assert!((out[15].unwrap() - 0.020).abs() < 1e-9, "{out:?}");
+    // ... and held at its ends beyond: extrapolated, the base would be 50 mm and the tip
+    // would vanish.
+    assert!((out[0].unwrap() - 0.030).abs() < 1e-9, "{out:?}");
+    assert!((out[20].unwrap() - 0.020).abs() < 1e-9, "{out:?}");
+}
+
+#[test]
+fn a_longer_span_sees_the_branch_past_a_sideways_wander() {
+    // A chain up z that steps 4.5 cm sideways over three nodes while rising 1.5 cm, as a
+    // chain drawn along the seen half of a thick branch can.
+    let at = [
+        (0.0, 0.0),
+        (0.0, 0.02),
+        (0.0, 0.04),
+        (0.0, 0.06),
+        (0.015, 0.065),
+        (0.03, 0.07),
+        (0.045, 0.075),
+        (0.045, 0.10),
+        (0.045, 0.12),
+        (0.045, 0.14),
+    ];
+    let pos: Vec<Vector3<f64>> = at.iter().map(|&(x, z)| Vector3::new(x, 0.0, z)).collect();
+    let parent: Vec<Option<usize>> = (0..at.len()).map(|k| k.checked_sub(1)).collect();
+    let g = Graph {
+        bridge: vec![false; pos.len()],
+        pos,
+        parent,
+    };
+    let children = g.children();
+    let off_z = |span: usize| {
+        g.tangent(5, &children, span)
+            .unwrap()
+            .z
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees()
+    };
+    assert!(off_z(1) > 60.0, "{}", off_z(1));
+    assert!(off_z(ONE_SIDED_TANGENT_SPAN) < 35.0, "{}", off_z(3));
+    // Near the chain's ends the span is cut short, not carried past them.
+    let end = g.tangent(8, &children, ONE_SIDED_TANGENT_SPAN).unwrap();
+    assert!(end.x > 0.0 && end.z > 0.9, "{end:?}");
+}
