@@ -246,7 +246,8 @@ pub fn reconstruct_with_progress(
     // rings by a fork gave one coffee view 18 % more volume.
     let near_forks = config.centre_forks && !levels && !p.one_sided;
     // Cross-sections of a one-sided view's colonization chains are taken over a longer span.
-    let span = if p.one_sided && !levels {
+    let one_sided_colonization = p.one_sided && !levels;
+    let span = if one_sided_colonization {
         ONE_SIDED_TANGENT_SPAN
     } else {
         1
@@ -296,6 +297,13 @@ pub fn reconstruct_with_progress(
         )
     };
     let (mut skeleton, mut fits_used) = radii(&graph)?;
+    if one_sided_colonization {
+        // Chains that looped across a half-seen thick branch: onto their chords.
+        let r: Vec<f64> = skeleton.nodes().iter().map(|n| n.radius_m).collect();
+        if graph.straighten_loops(&r) > 0 {
+            (skeleton, fits_used) = radii(&graph)?;
+        }
+    }
     // Twigs shorter than the kill distance were never grown: their points sit off the
     // model. Grow once more from the whole skeleton toward those, with a fine kill distance.
     let mut twig_growth = None;

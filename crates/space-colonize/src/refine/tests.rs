@@ -318,3 +318,51 @@ fn a_longer_span_sees_the_branch_past_a_sideways_wander() {
     let end = g.tangent(8, &children, ONE_SIDED_TANGENT_SPAN).unwrap();
     assert!(end.x > 0.0 && end.z > 0.9, "{end:?}");
 }
+
+#[test]
+fn a_loop_across_a_thick_branch_is_put_on_its_chord_and_a_thin_one_is_left() {
+    // Up z in 2 cm steps, swinging 5 cm sideways and back while rising 2.5 cm.
+    let xz = [
+        (0.0, 0.0),
+        (0.0, 0.02),
+        (0.0, 0.04),
+        (0.0, 0.06),
+        (0.0, 0.08),
+        (0.03, 0.085),
+        (0.05, 0.09),
+        (0.05, 0.095),
+        (0.03, 0.10),
+        (0.0, 0.105),
+        (0.0, 0.125),
+        (0.0, 0.145),
+        (0.0, 0.165),
+        (0.0, 0.185),
+    ];
+    let build = || {
+        let pos: Vec<Vector3<f64>> = xz.iter().map(|&(x, z)| Vector3::new(x, 0.0, z)).collect();
+        let parent: Vec<Option<usize>> = (0..xz.len()).map(|k| k.checked_sub(1)).collect();
+        Graph {
+            bridge: vec![false; pos.len()],
+            pos,
+            parent,
+        }
+    };
+    let n = xz.len();
+    let mut thick = build();
+    let before = thick.pos.clone();
+    assert!(thick.straighten_loops(&vec![0.03; n]) > 0);
+    let widest = |g: &Graph| g.pos.iter().map(|p| p.x.abs()).fold(0.0, f64::max);
+    assert!(widest(&thick) < 0.01, "{:?}", thick.pos);
+    assert_eq!(thick.pos[0], before[0]);
+    assert_eq!(thick.pos[n - 1], before[n - 1]);
+    // A thin twig's swing is left as it is.
+    let mut thin = build();
+    assert_eq!(thin.straighten_loops(&vec![0.004; n]), 0);
+    assert_eq!(thin.pos, before);
+    // A straight chain has no loop.
+    let mut straight = build();
+    for (k, p) in straight.pos.iter_mut().enumerate() {
+        *p = Vector3::new(0.0, 0.0, 0.02 * k as f64);
+    }
+    assert_eq!(straight.straighten_loops(&vec![0.03; n]), 0);
+}
