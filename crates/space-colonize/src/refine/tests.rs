@@ -366,3 +366,39 @@ fn a_loop_across_a_thick_branch_is_put_on_its_chord_and_a_thin_one_is_left() {
     }
     assert_eq!(straight.straighten_loops(&vec![0.03; n]), 0);
 }
+
+#[test]
+fn centring_moves_the_chain_onto_its_axis_and_leaves_the_root() {
+    // A 3 cm trunk whose axis is 1 cm off the grown chain (up z from the origin, 2 cm
+    // steps), scanned all round from 1 cm below the root.
+    let pos: Vec<Vector3<f64>> = (0..=15)
+        .map(|k| Vector3::new(0.0, 0.0, 0.02 * f64::from(k)))
+        .collect();
+    let parent: Vec<Option<usize>> = (0_usize..=15).map(|k| k.checked_sub(1)).collect();
+    let mut g = Graph {
+        bridge: vec![false; pos.len()],
+        pos,
+        parent,
+    };
+    let mut pts = Vec::new();
+    for zk in -5..150 {
+        for ak in 0..24 {
+            let a = (15.0 * f64::from(ak)).to_radians();
+            pts.push([0.01 + 0.03 * a.cos(), 0.03 * a.sin(), 0.002 * f64::from(zk)]);
+        }
+    }
+    let keep = vec![true; pts.len()];
+    let how = Centring {
+        centroid_fallback: true,
+        near_forks: false,
+        span: 1,
+    };
+    g.centre(&pts, &keep, &arc_parameters(false), 0, how);
+    assert_eq!(g.pos[0], Vector3::zeros());
+    for k in 3..13 {
+        assert!((g.pos[k].x - 0.01).abs() < 1e-3, "{k}: {:?}", g.pos[k]);
+        assert!((g.pos[k].z - 0.02 * k as f64).abs() < 1e-3, "{k}: {:?}", g.pos[k]);
+    }
+    g.centre_on_radius(&pts, &keep, &[0.03; 16], 1);
+    assert_eq!(g.pos[0], Vector3::zeros());
+}
