@@ -397,7 +397,11 @@ fn centring_moves_the_chain_onto_its_axis_and_leaves_the_root() {
     assert_eq!(g.pos[0], Vector3::zeros());
     for k in 3..13 {
         assert!((g.pos[k].x - 0.01).abs() < 1e-3, "{k}: {:?}", g.pos[k]);
-        assert!((g.pos[k].z - 0.02 * k as f64).abs() < 1e-3, "{k}: {:?}", g.pos[k]);
+        assert!(
+            (g.pos[k].z - 0.02 * k as f64).abs() < 1e-3,
+            "{k}: {:?}",
+            g.pos[k]
+        );
     }
     g.centre_on_radius(&pts, &keep, &[0.03; 16], 1);
     assert_eq!(g.pos[0], Vector3::zeros());
