@@ -15,6 +15,14 @@ pub const NEAR_CLOUD_M: f64 = 0.02;
 /// for segments no longer than the spacing of the nodes.
 const CANDIDATE_CYLINDERS: usize = 8;
 
+/// Cylinders (nearest by midpoint) among which a point's distance to the model is sought
+/// when choosing what the twig pass grows toward. With the metrics' 8, a point on a thick
+/// branch beside a cluster of short twig segments could miss the branch's own cylinder and
+/// look 2–4 cm off the model, and the twig pass grew twigs along the branch's surface. 16
+/// (the fidelity measure's count) and 32 gave the same models (synthetic evaluation trees,
+/// seeds 40–51: axis error 7.17 → 6.79 mm), 16 in less time.
+pub(crate) const TWIG_PASS_CANDIDATE_CYLINDERS: usize = 16;
+
 /// Fidelity of a model to a cloud.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Metrics {
@@ -75,7 +83,21 @@ pub(crate) fn surface_distance(
 /// (infinite when the skeleton has no segment).
 pub(crate) fn point_distances(pts: &[[f64; 3]], skeleton: &Skeleton) -> Vec<f64> {
     let cyls = cylinders(skeleton);
-    distances(pts.iter().map(|p| Vector3::from(*p)), &cyls)
+    distances(
+        pts.iter().map(|p| Vector3::from(*p)),
+        &cyls,
+        CANDIDATE_CYLINDERS,
+    )
+}
+
+/// [`point_distances`] over the `candidates` cylinders with the nearest midpoints.
+pub(crate) fn point_distances_among(
+    pts: &[[f64; 3]],
+    skeleton: &Skeleton,
+    candidates: usize,
+) -> Vec<f64> {
+    let cyls = cylinders(skeleton);
+    distances(pts.iter().map(|p| Vector3::from(*p)), &cyls, candidates)
 }
 
 struct Cyl {
@@ -112,12 +134,16 @@ fn midpoints(cyls: &[Cyl]) -> Vec<[f64; 3]> {
         .collect()
 }
 
-fn distances(points: impl Iterator<Item = Vector3<f64>>, cyls: &[Cyl]) -> Vec<f64> {
+fn distances(
+    points: impl Iterator<Item = Vector3<f64>>,
+    cyls: &[Cyl],
+    candidates: usize,
+) -> Vec<f64> {
     if cyls.is_empty() {
         return points.map(|_| f64::INFINITY).collect();
     }
     let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&midpoints(cyls));
-    let k = crate::cloud::at_least_one(CANDIDATE_CYLINDERS.min(cyls.len()));
+    let k = crate::cloud::at_least_one(candidates.min(cyls.len()));
     points
         .map(|q| {
             tree.nearest_n::<SquaredEuclidean>(&[q.x, q.y, q.z], k)
@@ -196,7 +222,7 @@ pub fn metrics(points: &[Point3<f64>], skeleton: &Skeleton) -> Metrics {
     let mut dist = if cyls.is_empty() {
         Vec::new()
     } else {
-        distances(points.iter().map(|p| p.coords), &cyls)
+        distances(points.iter().map(|p| p.coords), &cyls, CANDIDATE_CYLINDERS)
     };
     let (mut length_near, mut max_gap) = (0.0, 0.0_f64);
     if !points.is_empty() {
@@ -241,5 +267,37 @@ pub fn metrics(points: &[Point3<f64>], skeleton: &Skeleton) -> Metrics {
         total_length_m,
         skeleton_length_m,
         volume_l,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::skeleton::SkeletonNode;
+
+    #[test]
+    fn a_point_on_a_thick_branch_beside_a_cluster_of_twig_segments_finds_the_branch() {
+        // A 7 cm trunk segment 20 cm long, and a twig of 12 short segments 5 cm beside the
+        // point, all with midpoints nearer the point than the trunk's.
+        let node = |id: usize, parent: Option<usize>, p: [f64; 3], r: f64| SkeletonNode {
+            id,
+            parent,
+            position: Point3::from(p),
+            radius_m: r,
+        };
+        let mut nodes = vec![
+            node(0, None, [0.0, 0.0, 0.0], 0.07),
+            node(1, Some(0), [0.0, 0.0, 0.2], 0.07),
+        ];
+        for k in 0..12 {
+            let x = 0.02 + 0.005 * k as f64;
+            nodes.push(node(2 + k, Some(1 + k), [x, 0.05, 0.2], 0.002));
+        }
+        let skeleton = Skeleton::new(nodes).unwrap();
+        let on_trunk = [[0.07, 0.0, 0.19]];
+        // Among the metrics' 8 nearest midpoints only twig segments: 4-5 cm off.
+        assert!(point_distances(&on_trunk, &skeleton)[0] > 0.03);
+        let d = point_distances_among(&on_trunk, &skeleton, TWIG_PASS_CANDIDATE_CYLINDERS)[0];
+        assert!(d < 1e-9, "{d}");
     }
 }

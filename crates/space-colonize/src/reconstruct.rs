@@ -308,7 +308,11 @@ pub fn reconstruct_with_progress(
     // model. Grow once more from the whole skeleton toward those, with a fine kill distance.
     let mut twig_growth = None;
     if p.twig_kill_distance_m < p.kill_distance_m {
-        let d = crate::metrics::point_distances(&prep.pts, &skeleton);
+        let d = crate::metrics::point_distances_among(
+            &prep.pts,
+            &skeleton,
+            crate::metrics::TWIG_PASS_CANDIDATE_CYLINDERS,
+        );
         let attract: Vec<bool> = d
             .iter()
             .zip(&prep.main)
