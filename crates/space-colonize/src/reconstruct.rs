@@ -12,7 +12,8 @@ use crate::grow::{Pass, grow};
 use crate::levels::{Levels, grow_levels};
 use crate::metrics::NEAR_CLOUD_M;
 use crate::refine::{
-    Centring, Graph, ONE_SIDED_TANGENT_SPAN, far_tails, twig_stubs, unneeded_stubs,
+    Centring, Graph, ONE_SIDED_TANGENT_SPAN, far_tails, inside_parent_twigs, twig_stubs,
+    unneeded_stubs,
 };
 use crate::skeleton::{Branch, Skeleton, SkeletonNode};
 use crate::wood::Leaves;
@@ -349,7 +350,15 @@ pub fn reconstruct_with_progress(
     // thick branch: any terminal twig no point needs goes, not only the short stubs.
     let stub_m = if levels { f64::INFINITY } else { p.min_twig_m };
     for _ in 0..2 {
-        let stubs = twig_stubs(&skeleton, stub_m);
+        let mut stubs = twig_stubs(&skeleton, stub_m);
+        // Colonization also grows twigs along the inside of a thick branch's surface.
+        if !levels {
+            for c in inside_parent_twigs(&skeleton, p.min_twig_m) {
+                if !stubs.contains(&c) {
+                    stubs.push(c);
+                }
+            }
+        }
         let removed = remove_unneeded(&mut graph, &skeleton, &stubs, &prep, &radii_of)?;
         if removed == 0 {
             break;

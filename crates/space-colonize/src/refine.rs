@@ -879,6 +879,64 @@ pub(crate) fn twig_stubs(skeleton: &Skeleton, min_twig_m: f64) -> Vec<Vec<usize>
         .collect()
 }
 
+/// Terminal branches that run inside the branch they grow from: every node within
+/// `min_twig_m` of that branch's surface or inside it. Candidates for removal, like
+/// [`twig_stubs`], but of any length: in a one-sided view chains can run along the inside
+/// of a thick branch's seen half for tens of centimetres.
+pub(crate) fn inside_parent_twigs(skeleton: &Skeleton, min_twig_m: f64) -> Vec<Vec<usize>> {
+    let nodes = skeleton.nodes();
+    let branches = skeleton.branches();
+    let index: std::collections::HashMap<usize, usize> = branches
+        .iter()
+        .enumerate()
+        .map(|(k, b)| (b.id, k))
+        .collect();
+    branches
+        .iter()
+        .filter(|b| {
+            let (Some(parent), Some(&tip)) = (b.parent, b.nodes.last()) else {
+                return false;
+            };
+            let terminal = b.nodes.iter().all(|&v| skeleton.children(v).len() <= 1)
+                && skeleton.children(tip).is_empty();
+            if !terminal {
+                return false;
+            }
+            let Some(pb) = index.get(&parent).map(|&k| &branches[k]) else {
+                return false;
+            };
+            // The parent branch's segments: (start, end, radius of the end node).
+            let segs: Vec<(Vector3<f64>, Vector3<f64>, f64)> = pb
+                .nodes
+                .iter()
+                .filter_map(|&v| {
+                    let p = nodes[v].parent?;
+                    Some((
+                        nodes[p].position.coords,
+                        nodes[v].position.coords,
+                        nodes[v].radius_m,
+                    ))
+                })
+                .collect();
+            !segs.is_empty()
+                && b.nodes.iter().all(|&v| {
+                    let q = nodes[v].position.coords;
+                    segs.iter().any(|(a, e, r)| {
+                        let d = e - a;
+                        let len2 = d.norm_squared();
+                        let t = if len2 > 0.0 {
+                            ((q - a).dot(&d) / len2).clamp(0.0, 1.0)
+                        } else {
+                            0.0
+                        };
+                        (q - (a + d * t)).norm() <= r + min_twig_m
+                    })
+                })
+        })
+        .map(|b| b.nodes.clone())
+        .collect()
+}
+
 /// Twig ends in the air: in each terminal chain (the nodes beyond the last fork), the
 /// first segment whose surface is more than `near_m` from every point of `tree`, measured
 /// from its mid-axis, and the nodes beyond it. Twigs extended or grown past the end of

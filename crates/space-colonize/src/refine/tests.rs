@@ -406,3 +406,42 @@ fn centring_moves_the_chain_onto_its_axis_and_leaves_the_root() {
     g.centre_on_radius(&pts, &keep, &[0.03; 16], 1);
     assert_eq!(g.pos[0], Vector3::zeros());
 }
+
+#[test]
+fn a_twig_running_inside_its_parent_is_a_candidate_and_one_growing_out_is_not() {
+    let node = |id: usize, parent: Option<usize>, p: [f64; 3], r: f64| SkeletonNode {
+        id,
+        parent,
+        position: Point3::from(p),
+        radius_m: r,
+    };
+    // A 5 cm trunk up z in 5 cm steps to 1 m.
+    let mut nodes: Vec<SkeletonNode> = (0..=20)
+        .map(|k| node(k, k.checked_sub(1), [0.0, 0.0, 0.05 * k as f64], 0.05))
+        .collect();
+    // From 0.2 m, a twig up along the trunk 3 cm off its axis for 30 cm ...
+    for k in 0..6 {
+        let parent = if k == 0 { 4 } else { 20 + k };
+        nodes.push(node(
+            21 + k,
+            Some(parent),
+            [0.03, 0.0, 0.25 + 0.05 * k as f64],
+            0.005,
+        ));
+    }
+    // ... and from 0.6 m a branch out to 30 cm from the axis.
+    for k in 0..6 {
+        let parent = if k == 0 { 12 } else { 26 + k };
+        nodes.push(node(
+            27 + k,
+            Some(parent),
+            [0.05 * (k + 1) as f64, 0.0, 0.62],
+            0.005,
+        ));
+    }
+    let skeleton = Skeleton::new(nodes).unwrap();
+    let inside = inside_parent_twigs(&skeleton, 0.01);
+    assert_eq!(inside, vec![(21..27).collect::<Vec<usize>>()]);
+    // The tip-distance rule of `twig_stubs` misses it: its tip is 32 cm from the fork.
+    assert!(twig_stubs(&skeleton, 0.01).is_empty());
+}
