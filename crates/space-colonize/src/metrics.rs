@@ -82,12 +82,7 @@ pub(crate) fn surface_distance(
 /// Distance from each point to the nearest cylinder surface of a skeleton, metres
 /// (infinite when the skeleton has no segment).
 pub(crate) fn point_distances(pts: &[[f64; 3]], skeleton: &Skeleton) -> Vec<f64> {
-    let cyls = cylinders(skeleton);
-    distances(
-        pts.iter().map(|p| Vector3::from(*p)),
-        &cyls,
-        CANDIDATE_CYLINDERS,
-    )
+    point_distances_among(pts, skeleton, CANDIDATE_CYLINDERS)
 }
 
 /// [`point_distances`] over the `candidates` cylinders with the nearest midpoints.

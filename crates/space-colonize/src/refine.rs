@@ -856,6 +856,14 @@ impl Assignment {
     }
 }
 
+/// Whether no branch grows from `b` (nor from its tip).
+fn is_terminal(skeleton: &Skeleton, b: &crate::skeleton::Branch) -> bool {
+    b.nodes.iter().all(|&v| skeleton.children(v).len() <= 1)
+        && b.nodes
+            .last()
+            .is_some_and(|&tip| skeleton.children(tip).is_empty())
+}
+
 /// Terminal branches that reach less than `min_twig_m` beyond the surface of the branch
 /// they grow from: candidates for removal as the stubs space colonization grows toward the
 /// near side of a thick branch. Each stub is its list of nodes.
@@ -868,10 +876,7 @@ pub(crate) fn twig_stubs(skeleton: &Skeleton, min_twig_m: f64) -> Vec<Vec<usize>
             let (Some(base), Some(&tip)) = (b.base_node, b.nodes.last()) else {
                 return false;
             };
-            // Terminal: no branch grows from it.
-            let terminal = b.nodes.iter().all(|&v| skeleton.children(v).len() <= 1)
-                && skeleton.children(tip).is_empty();
-            terminal
+            is_terminal(skeleton, b)
                 && (nodes[tip].position - nodes[base].position).norm()
                     < nodes[base].radius_m + min_twig_m
         })
@@ -894,14 +899,9 @@ pub(crate) fn inside_parent_twigs(skeleton: &Skeleton, min_twig_m: f64) -> Vec<V
     branches
         .iter()
         .filter(|b| {
-            let (Some(parent), Some(&tip)) = (b.parent, b.nodes.last()) else {
+            let Some(parent) = b.parent.filter(|_| is_terminal(skeleton, b)) else {
                 return false;
             };
-            let terminal = b.nodes.iter().all(|&v| skeleton.children(v).len() <= 1)
-                && skeleton.children(tip).is_empty();
-            if !terminal {
-                return false;
-            }
             let Some(pb) = index.get(&parent).map(|&k| &branches[k]) else {
                 return false;
             };

@@ -20,6 +20,25 @@ fn trunk_with_stub() -> Graph {
     }
 }
 
+/// A chain through `pos` in order, each node the previous one's child.
+fn chain(pos: Vec<Vector3<f64>>) -> Graph {
+    let parent: Vec<Option<usize>> = (0..pos.len()).map(|k| k.checked_sub(1)).collect();
+    Graph {
+        bridge: vec![false; pos.len()],
+        pos,
+        parent,
+    }
+}
+
+/// A straight chain up z from the origin in 2 cm steps, `n` nodes.
+fn straight_up(n: u32) -> Graph {
+    chain(
+        (0..n)
+            .map(|k| Vector3::new(0.0, 0.0, 0.02 * f64::from(k)))
+            .collect(),
+    )
+}
+
 #[test]
 fn fits_far_from_the_pipe_model_are_not_used() {
     let g = trunk_with_stub();
@@ -254,15 +273,7 @@ fn a_one_sided_views_short_arcs_measure_where_the_noise_is_small_against_them() 
 fn a_chains_taper_is_not_carried_past_its_measured_stretch() {
     // A straight chain up z in 2 cm steps, measured only on nodes 10..=15, where the radius
     // falls from 30 to 20 mm.
-    let pos: Vec<Vector3<f64>> = (0..=20)
-        .map(|k| Vector3::new(0.0, 0.0, 0.02 * f64::from(k)))
-        .collect();
-    let parent: Vec<Option<usize>> = (0_usize..=20).map(|k| k.checked_sub(1)).collect();
-    let g = Graph {
-        bridge: vec![false; pos.len()],
-        pos,
-        parent,
-    };
+    let g = straight_up(21);
     let raw: Vec<Option<f64>> = (0..=20_u32)
         .map(|k| {
             (10..=15)
@@ -296,13 +307,7 @@ fn a_longer_span_sees_the_branch_past_a_sideways_wander() {
         (0.045, 0.12),
         (0.045, 0.14),
     ];
-    let pos: Vec<Vector3<f64>> = at.iter().map(|&(x, z)| Vector3::new(x, 0.0, z)).collect();
-    let parent: Vec<Option<usize>> = (0..at.len()).map(|k| k.checked_sub(1)).collect();
-    let g = Graph {
-        bridge: vec![false; pos.len()],
-        pos,
-        parent,
-    };
+    let g = chain(at.iter().map(|&(x, z)| Vector3::new(x, 0.0, z)).collect());
     let children = g.children();
     let off_z = |span: usize| {
         g.tangent(5, &children, span)
@@ -338,15 +343,7 @@ fn a_loop_across_a_thick_branch_is_put_on_its_chord_and_a_thin_one_is_left() {
         (0.0, 0.165),
         (0.0, 0.185),
     ];
-    let build = || {
-        let pos: Vec<Vector3<f64>> = xz.iter().map(|&(x, z)| Vector3::new(x, 0.0, z)).collect();
-        let parent: Vec<Option<usize>> = (0..xz.len()).map(|k| k.checked_sub(1)).collect();
-        Graph {
-            bridge: vec![false; pos.len()],
-            pos,
-            parent,
-        }
-    };
+    let build = || chain(xz.iter().map(|&(x, z)| Vector3::new(x, 0.0, z)).collect());
     let n = xz.len();
     let mut thick = build();
     let before = thick.pos.clone();
@@ -360,10 +357,7 @@ fn a_loop_across_a_thick_branch_is_put_on_its_chord_and_a_thin_one_is_left() {
     assert_eq!(thin.straighten_loops(&vec![0.004; n]), 0);
     assert_eq!(thin.pos, before);
     // A straight chain has no loop.
-    let mut straight = build();
-    for (k, p) in straight.pos.iter_mut().enumerate() {
-        *p = Vector3::new(0.0, 0.0, 0.02 * k as f64);
-    }
+    let mut straight = straight_up(u32::try_from(n).unwrap());
     assert_eq!(straight.straighten_loops(&vec![0.03; n]), 0);
 }
 
@@ -371,15 +365,7 @@ fn a_loop_across_a_thick_branch_is_put_on_its_chord_and_a_thin_one_is_left() {
 fn centring_moves_the_chain_onto_its_axis_and_leaves_the_root() {
     // A 3 cm trunk whose axis is 1 cm off the grown chain (up z from the origin, 2 cm
     // steps), scanned all round from 1 cm below the root.
-    let pos: Vec<Vector3<f64>> = (0..=15)
-        .map(|k| Vector3::new(0.0, 0.0, 0.02 * f64::from(k)))
-        .collect();
-    let parent: Vec<Option<usize>> = (0_usize..=15).map(|k| k.checked_sub(1)).collect();
-    let mut g = Graph {
-        bridge: vec![false; pos.len()],
-        pos,
-        parent,
-    };
+    let mut g = straight_up(16);
     let mut pts = Vec::new();
     for zk in -5..150 {
         for ak in 0..24 {
