@@ -3,6 +3,12 @@
 
 use super::*;
 
+/// Largest distance (windows) between a marker's prediction and its part of a blob split
+/// from a look-alike touching it: a marker at rest, or in the first frame of its release
+/// (a quarter window and more); a part farther off is not the marker's (the split gave its
+/// pixels to the look-alike's side).
+const OWN_PART_WINDOWS: f64 = 0.4;
+
 /// Share of the pixels of `holds` whose colour changed since `previous` by more than
 /// [`CHANGED_LEVEL`] in some channel: a marker that just arrived changed its pixels; a
 /// static look-alike did not.
@@ -273,13 +279,19 @@ pub(super) fn blob_confidence(blob: &Blob, r: &Reference) -> f64 {
 /// pairs of nearby fragments that make one marker together (a marker cut by a twig). A blob
 /// on which another marker (`others`: predictions of markers found in the last frame) is
 /// predicted as well as this one (`own`) is shared: this marker's candidate is the part
-/// nearer to it.
+/// nearer to it. So is a blob that no other marker shares and that holds one of the
+/// marker's static look-alikes away from `own` (`look_alikes`, see
+/// [`MarkerState::look_alikes_away`]), when the part nearer to `own` lies within
+/// [`OWN_PART_WINDOWS`] windows of it: a marker at rest beside a look-alike of its
+/// colour makes one blob with it when the two touch, and its candidate is its own part, not
+/// the pair's centroid.
 pub(super) fn candidates_in(
     region: &mut Region,
     labeler: &mut Labeler,
     m: &MarkerState,
     own: Option<Point2<f64>>,
     others: &[Point2<f64>],
+    look_alikes: &[Point2<f64>],
 ) -> Vec<Measured> {
     let blobs = labeler.blobs(
         &region.weights,
@@ -318,6 +330,26 @@ pub(super) fn candidates_in(
                 out.push(measured_at(region, m, part));
             }
             continue;
+        }
+        // A marker at rest and a look-alike touching it: its own part, where the split
+        // finds that near its prediction (a marker at rest is about where it is predicted,
+        // at most a release's first step off); else the blob as it is.
+        let beside: Vec<Point2<f64>> = look_alikes
+            .iter()
+            .filter(|p| on(p, b.bounds))
+            .copied()
+            .collect();
+        if let Some(own) = own.filter(|p| !beside.is_empty() && on(p, b.bounds.grown(w, h))) {
+            let mut centres = vec![own];
+            centres.extend(beside);
+            let parts = labeler.split(&region.weights, region.rect, b, &centres);
+            let reach = OWN_PART_WINDOWS * window_px(m);
+            if let Some(part) = parts.first().filter(|p| {
+                p.pixels > 0 && plausible(p, &m.reference) && (p.centroid - own).norm() <= reach
+            }) {
+                out.push(measured_at(region, m, part));
+                continue;
+            }
         }
         if plausible(b, &m.reference) {
             let mut steady = *b;

@@ -68,10 +68,11 @@ impl Tracker {
             }
         } else if config.recovery {
             let near = |c: &Measured| (c.center - mode.center).norm();
-            let nearest = candidates_in(&mut self.region, &mut self.labeler, &state, None, &[])
-                .into_iter()
-                .filter(|c| c.holds.intersect(&w).area() > 0)
-                .min_by(|a, b| near(a).total_cmp(&near(b)));
+            let nearest =
+                candidates_in(&mut self.region, &mut self.labeler, &state, None, &[], &[])
+                    .into_iter()
+                    .filter(|c| c.holds.intersect(&w).area() > 0)
+                    .min_by(|a, b| near(a).total_cmp(&near(b)));
             match nearest {
                 // A blob whose centre mean-shift in the window does not come near is the
                 // marker merged with something touching it (a look-alike beside it): the
@@ -160,7 +161,7 @@ impl Tracker {
                 // Only the blobs' places are kept: a sparse fill gives the same.
                 true,
             );
-            for c in candidates_in(&mut self.region, &mut self.labeler, m, None, &[]) {
+            for c in candidates_in(&mut self.region, &mut self.labeler, m, None, &[], &[]) {
                 if centres
                     .iter()
                     .all(|(p, side)| (p - c.center).norm() > 0.5 * side)

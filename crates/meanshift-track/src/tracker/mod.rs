@@ -89,6 +89,10 @@ pub use track::{DepthView, MarkerInit, Observation, Track, TrackStatus, TrackSum
 /// Squared gate distance (2 degrees of freedom) inside which a measurement belongs to a
 /// prediction: the chi-square quantile of 0.999.
 const GATE_CHI2: f64 = 13.82;
+/// Speed (windows per frame) up to which a marker found in the last frame counts as at rest
+/// beside its static look-alikes (see `MarkerState::look_alikes_away`): a moving marker's
+/// blob is a streak that a split would cut.
+const RESTING_WINDOWS_PER_FRAME: f64 = 0.25;
 /// Standard deviation of a measured centre (pixels).
 const MEASUREMENT_PX: f64 = 1.0;
 /// Least acceleration noise of the motion model (pixels per frame²): a marker at rest still

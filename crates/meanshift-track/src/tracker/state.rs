@@ -188,6 +188,23 @@ impl MarkerState {
             .any(|d| d.seen >= 2 && (d.at - at).norm() < (DISTRACTOR_RADIUS * side).max(2.0))
     }
 
+    /// The places of this marker's static look-alikes more than half a window from `pred`:
+    /// where the marker is not predicted to be on them, a blob holding one is the marker and
+    /// the look-alike touching (see [`candidates_in`]).
+    pub(super) fn look_alikes_away(&self, pred: Point2<f64>) -> Vec<Point2<f64>> {
+        let half = 0.5 * window_px(self);
+        if self.misses > 0
+            || self.filter.velocity.norm() > RESTING_WINDOWS_PER_FRAME * window_px(self)
+        {
+            return Vec::new();
+        }
+        self.distractors
+            .iter()
+            .filter(|d| d.seen >= 2 && (d.at - pred).norm() > half)
+            .map(|d| d.at)
+            .collect()
+    }
+
     /// The boxes of this marker's static look-alikes in `region` that it is not predicted to
     /// be on: their pixels do not count, so that a marker passing one is not pulled onto it.
     pub(super) fn static_masks(&self, region: PixelRect, pred: Point2<f64>) -> Vec<PixelRect> {
