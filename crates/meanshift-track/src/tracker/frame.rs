@@ -80,13 +80,14 @@ impl Tracker {
             .copied()
             .chain(results.iter().flatten().map(|r| r.0.center))
             .collect();
+        let frame = self.frames();
         for (i, result) in results.iter().enumerate() {
             let Some((q, _, _)) = result else { continue };
             let side = window_px(&self.markers[i]);
             for &(p, bounds) in &rejected[i] {
                 if (p - q.center).norm() > side && places_now.iter().all(|c| (c - p).norm() > side)
                 {
-                    remember_distractor(&mut self.markers[i], p, bounds, side);
+                    remember_distractor(&mut self.markers[i], p, bounds, side, frame);
                 }
             }
         }
@@ -147,18 +148,24 @@ impl Tracker {
             };
             let side = window_px(m);
             let near = (DISTRACTOR_RADIUS * side).max(2.0);
+            let frame = track.observations.len().saturating_sub(1);
             if let Some(d) = m
                 .distractors
                 .iter_mut()
                 .find(|d| (d.at - parked.at).norm() < near)
             {
                 d.seen = d.seen.max(2);
+                d.static_frame.get_or_insert(frame);
             } else if parked.jumped_in {
-                remember_distractor(m, parked.at, parked.bounds, side);
-                remember_distractor(m, parked.at, parked.bounds, side);
+                remember_distractor(m, parked.at, parked.bounds, side, frame);
+                remember_distractor(m, parked.at, parked.bounds, side, frame);
             } else {
                 continue;
             }
+            // What the track turned down while it stood there was seen from the wrong
+            // place: most likely the marker itself, which must not count as a look-alike.
+            m.distractors
+                .retain(|d| d.first_frame < parked.since || (d.at - parked.at).norm() < near);
             // Those frames were the look-alike's: not found, and the marker is looked for
             // as one missing since then.
             for o in &mut track.observations[parked.since..] {
@@ -460,7 +467,7 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     let at = Point2::from(sum / f64::from(count));
     let side = window_px(m);
     let still = found().all(|(c, _)| (c - at).norm() <= PARKED_PX);
-    if !still || (at - m.home).norm() <= HOME_NEAR_WINDOWS * side {
+    if !still {
         return None;
     }
     let thrown = |w: &[Observation]| {
@@ -479,6 +486,19 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     let thrown_before = entered.filter(|&k| k < start && thrown(&obs[k - 1..=k]));
     let jumped_in =
         thrown_before.is_some() || obs[start.saturating_sub(1)..].windows(2).any(thrown);
+    // Near its home a marker may be held still (a child carried by its parent's pull), but
+    // not on a look-alike it knew as static before the track came there.
+    let came = entered.unwrap_or(start);
+    let known_before = m.distractors.iter().any(|d| {
+        (d.at - at).norm() < (DISTRACTOR_RADIUS * side).max(2.0)
+            && d.static_frame.is_some_and(|f| f < came)
+    });
+    let from_home = (at - m.home).norm();
+    if from_home <= HOME_NEAR_WINDOWS * side
+        && !(known_before && from_home > LOOK_ALIKE_FROM_HOME_WINDOWS * side)
+    {
+        return None;
+    }
     Some(Parked {
         at,
         bounds: found()
@@ -573,7 +593,7 @@ mod tests {
         let (mut t, side, home) = setup()?;
         let look_alike = Point2::new(home.x + 4.0 * side, home.y + 2.0);
         let bounds = PixelRect::centered_at(look_alike, 11, 11);
-        remember_distractor(&mut t.markers[0], look_alike, bounds, side);
+        remember_distractor(&mut t.markers[0], look_alike, bounds, side, 0);
         assert!(!t.markers[0].on_distractor(look_alike));
         // Standing there for fewer frames than the rule asks: a swing's turn.
         park(&mut t, look_alike, PARKED_FRAMES - 1);
@@ -686,7 +706,7 @@ mod tests {
         let step = Vector2::new(0.0, side);
         let seen = Point2::new(look_alike.x + 0.4 * side, look_alike.y);
         let bounds = PixelRect::centered_at(seen, 11, 11);
-        remember_distractor(&mut t.markers[0], seen, bounds, side);
+        remember_distractor(&mut t.markers[0], seen, bounds, side, 0);
         found_at(&mut t, &[look_alike, home + step, home + 2.0 * step]);
         let o = t.tracks[0].observations[3];
         assert_eq!(o.status, TrackStatus::Predicted);
@@ -700,12 +720,48 @@ mod tests {
         assert_eq!(t.tracks[0].observations[3].status, TrackStatus::Recovered);
         let (mut t, _, _) = setup()?;
         park(&mut t, home, 2);
-        remember_distractor(&mut t.markers[0], seen, bounds, side);
+        remember_distractor(&mut t.markers[0], seen, bounds, side, 0);
         found_at(
             &mut t,
             &[look_alike, look_alike + step, look_alike + 2.0 * step],
         );
         assert_eq!(t.tracks[0].observations[3].status, TrackStatus::Recovered);
+        Ok(())
+    }
+
+    #[test]
+    fn a_track_standing_near_home_on_a_look_alike_known_before_it_came_is_parked() -> Result<()> {
+        let (mut t, side, home) = setup()?;
+        // A static look-alike (seen twice) a window and a half above A's home, inside the
+        // home's reach: known before the track comes there.
+        let look_alike = Point2::new(home.x, home.y - 1.5 * side);
+        let bounds = PixelRect::centered_at(look_alike, 11, 11);
+        remember_distractor(&mut t.markers[0], look_alike, bounds, side, 0);
+        remember_distractor(&mut t.markers[0], look_alike, bounds, side, 0);
+        park(&mut t, home, 2);
+        // The track stands on it; meanwhile the marker at home is turned down and
+        // remembered as a look-alike (twice: static).
+        park(&mut t, look_alike, PARKED_FRAMES);
+        let at_home = PixelRect::centered_at(home, 11, 11);
+        remember_distractor(&mut t.markers[0], home, at_home, side, 5);
+        remember_distractor(&mut t.markers[0], home, at_home, side, 6);
+        assert!(t.markers[0].on_distractor(home));
+        t.learn_parked();
+        // Parked: the frames there are estimates, and what it turned down from there is
+        // forgotten, so that the marker at home is its own again.
+        assert_eq!(t.markers[0].misses, PARKED_FRAMES);
+        assert_eq!(t.tracks[0].observations[3].status, TrackStatus::Predicted);
+        assert!(!t.markers[0].on_distractor(home));
+        // The same stay on a look-alike first seen there once the track stood on it is the
+        // marker held near home (a child carried by its parent's pull): not parked.
+        let (mut t, _, _) = setup()?;
+        park(&mut t, home, 2);
+        park(&mut t, look_alike, PARKED_FRAMES);
+        remember_distractor(&mut t.markers[0], look_alike, bounds, side, 4);
+        remember_distractor(&mut t.markers[0], look_alike, bounds, side, 5);
+        t.learn_parked();
+        assert_eq!(t.markers[0].misses, 0);
+        assert!(all_tracked(&t, 0));
         Ok(())
     }
 
@@ -719,6 +775,7 @@ mod tests {
             by_home,
             PixelRect::centered_at(by_home, 11, 11),
             side,
+            0,
         );
         park(&mut t, by_home, 2 * PARKED_FRAMES);
         t.learn_parked();

@@ -167,8 +167,8 @@ impl Tracker {
                     .all(|(p, side)| (p - c.center).norm() > 0.5 * side)
                 {
                     let side = window_px(m);
-                    remember_distractor(m, c.center, c.holds, side);
-                    remember_distractor(m, c.center, c.holds, side);
+                    remember_distractor(m, c.center, c.holds, side, 0);
+                    remember_distractor(m, c.center, c.holds, side, 0);
                 }
             }
         }

@@ -155,6 +155,10 @@ const HOME_COST: f64 = 6.0;
 /// Windows around a marker's home that count as its place: a child marker is carried that
 /// far by its parent's pull (the twin: up to about a window and a half).
 const HOME_NEAR_WINDOWS: f64 = 2.0;
+/// Least distance (windows) from a marker's home of a known static look-alike that a track
+/// standing on it is parked from, however near home: a look-alike touching the marker at
+/// rest lies about one marker width (under a window) away.
+const LOOK_ALIKE_FROM_HOME_WINDOWS: f64 = 0.75;
 /// Windows beyond the farthest this marker has been found from its home within which a
 /// place is still its own reach (a release throws a marker further than its pull).
 const HOME_MARGIN_WINDOWS: f64 = 2.0;
@@ -355,6 +359,10 @@ struct Distractor {
     bounds: PixelRect,
     /// Times seen at this place (within [`STATIC_PX`]); static from 2 on.
     seen: u32,
+    /// The frame it was first seen at this place.
+    first_frame: usize,
+    /// The frame it was seen at this place the second time (static since), if it was.
+    static_frame: Option<usize>,
 }
 
 #[derive(Debug, Clone)]

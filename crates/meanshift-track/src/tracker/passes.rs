@@ -590,6 +590,7 @@ impl Tracker {
             .chain(claimed.iter().map(|c| c.2))
             .chain(chosen.iter().flatten().map(|c| c.0.center))
             .collect();
+        let frame = self.frames();
         for ((&i, pick), blobs) in undecided.iter().zip(chosen).zip(seen) {
             let Some((picked, _)) = pick else { continue };
             let side = window_px(&self.markers[i]);
@@ -597,7 +598,7 @@ impl Tracker {
             let m = &mut self.markers[i];
             for (p, bounds) in blobs {
                 if (p - picked.center).norm() > side && !near_marker(&p) {
-                    remember_distractor(m, p, bounds, side);
+                    remember_distractor(m, p, bounds, side, frame);
                 }
             }
         }

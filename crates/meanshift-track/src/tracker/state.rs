@@ -420,12 +420,14 @@ pub(super) fn window_px(m: &MarkerState) -> f64 {
 
 /// Remember a look-alike at `p`: seen again where it was (within [`STATIC_PX`]), it counts
 /// once more; seen elsewhere nearby (partly covered, or moving), its count halves, and below
-/// 2 it starts over there. The oldest is forgotten past the limit.
+/// 2 it starts over there. The oldest is forgotten past the limit. `frame` is the frame it
+/// is seen in.
 pub(super) fn remember_distractor(
     m: &mut MarkerState,
     p: Point2<f64>,
     bounds: PixelRect,
     side: f64,
+    frame: usize,
 ) {
     if let Some(d) = m
         .distractors
@@ -434,12 +436,19 @@ pub(super) fn remember_distractor(
     {
         if (d.at - p).norm() <= STATIC_PX {
             d.seen = d.seen.saturating_add(1).min(MAX_SEEN);
+            if d.seen >= 2 && d.static_frame.is_none() {
+                d.static_frame = Some(frame);
+            }
         } else {
             d.seen /= 2;
             if d.seen < 2 {
-                d.at = p;
-                d.bounds = bounds;
-                d.seen = 1;
+                *d = Distractor {
+                    at: p,
+                    bounds,
+                    seen: 1,
+                    first_frame: frame,
+                    static_frame: None,
+                };
             }
         }
         return;
@@ -455,6 +464,8 @@ pub(super) fn remember_distractor(
         at: p,
         bounds,
         seen: 1,
+        first_frame: frame,
+        static_frame: None,
     });
 }
 
