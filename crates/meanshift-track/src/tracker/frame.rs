@@ -487,15 +487,19 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     let jumped_in =
         thrown_before.is_some() || obs[start.saturating_sub(1)..].windows(2).any(thrown);
     // Near its home a marker may be held still (a child carried by its parent's pull), but
-    // not on a look-alike it knew as static before the track came there.
+    // not on a look-alike it knew as static before the track came there, nor far off the
+    // line it swings along (a pull is held on that line).
     let came = entered.unwrap_or(start);
     let known_before = m.distractors.iter().any(|d| {
         (d.at - at).norm() < (DISTRACTOR_RADIUS * side).max(2.0)
             && d.static_frame.is_some_and(|f| f < came)
     });
+    let off_line = m
+        .signature
+        .is_some_and(|s| s.offset(at) > PARKED_OFF_LINE_SPREADS);
     let from_home = (at - m.home).norm();
     if from_home <= HOME_NEAR_WINDOWS * side
-        && !(known_before && from_home > LOOK_ALIKE_FROM_HOME_WINDOWS * side)
+        && !((known_before || off_line) && from_home > LOOK_ALIKE_FROM_HOME_WINDOWS * side)
     {
         return None;
     }
@@ -640,6 +644,43 @@ mod tests {
         t.learn_parked();
         assert!(!t.markers[0].on_distractor(there));
         assert_eq!(t.markers[0].misses, 0);
+        Ok(())
+    }
+
+    #[test]
+    fn a_track_thrown_near_home_but_far_off_the_swing_line_is_parked() -> Result<()> {
+        // A swings along x through its home (spread across the line 3 px); detection throws
+        // its track from 1.5 windows along the line to 1.5 windows above home (a jump of
+        // 2.1 windows), within the home's reach but 5 spreads off the line.
+        let thrown = |on_line: bool| -> Result<Tracker> {
+            let (mut t, side, home) = setup()?;
+            t.markers[0].signature = Some(crate::swing::SwingLine {
+                centre: home,
+                normal: Vector2::new(0.0, 1.0),
+                sigma_px: 3.0,
+                half_length_px: 2.0 * side,
+            });
+            let from = Point2::new(home.x + 1.5 * side, home.y);
+            let there = if on_line {
+                Point2::new(home.x - 0.7 * side, home.y)
+            } else {
+                Point2::new(home.x, home.y - 1.5 * side)
+            };
+            park(&mut t, from, 3);
+            park(&mut t, there, PARKED_FRAMES);
+            let len = t.tracks[0].observations.len();
+            t.tracks[0].observations[len - PARKED_FRAMES].status = TrackStatus::Recovered;
+            t.learn_parked();
+            Ok(t)
+        };
+        let last = |t: &Tracker| t.tracks[0].observations.last().map(|o| o.status);
+        let t = thrown(false)?;
+        assert_eq!(t.markers[0].misses, PARKED_FRAMES);
+        assert_eq!(last(&t), Some(TrackStatus::Predicted));
+        // Thrown as far onto the line itself (a pull held there): not parked.
+        let t = thrown(true)?;
+        assert_eq!(t.markers[0].misses, 0);
+        assert_eq!(last(&t), Some(TrackStatus::Tracked));
         Ok(())
     }
 

@@ -159,6 +159,10 @@ const HOME_NEAR_WINDOWS: f64 = 2.0;
 /// standing on it is parked from, however near home: a look-alike touching the marker at
 /// rest lies about one marker width (under a window) away.
 const LOOK_ALIKE_FROM_HOME_WINDOWS: f64 = 0.75;
+/// Offset (spreads) from a marker's signature swing line beyond which a still track near
+/// its home is not the marker held in a pull (a pull is held on the line the release then
+/// swings along): as far as a track that took another marker's path must be from its own.
+const PARKED_OFF_LINE_SPREADS: f64 = swaps::STOLEN_OWN_OFFSET;
 /// Windows beyond the farthest this marker has been found from its home within which a
 /// place is still its own reach (a release throws a marker further than its pull).
 const HOME_MARGIN_WINDOWS: f64 = 2.0;

@@ -59,7 +59,7 @@ const TOGETHER_WINDOWS: f64 = 1.5;
 /// A track taken over by another marker lies at least this far from its own line (mean
 /// offset over the last [`SWAP_FRAMES`] frames, spreads): well away from where the lines
 /// cross, where a track can be along both.
-const STOLEN_OWN_OFFSET: f64 = 4.0;
+pub(super) const STOLEN_OWN_OFFSET: f64 = 4.0;
 /// ... and moves along the other's line by at least this many windows over those frames (a
 /// still look-alike on that line is not the other marker).
 const STOLEN_MIN_TRAVEL_WINDOWS: f64 = 0.5;
