@@ -470,11 +470,20 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     if !still {
         return None;
     }
-    let thrown = |w: &[Observation]| {
-        followed(&w[1])
-            && w[1].status != TrackStatus::Tracked
-            && matches!((w[0].center, w[1].center), (Some(a), Some(b))
-                if (b - a).norm() > PARKED_JUMP_WINDOWS * side)
+    // Frame `k` was a throw: found by detection more than `PARKED_JUMP_WINDOWS` from where
+    // the track was last (before a frame it was lost in, the last place it had).
+    let thrown = |k: usize| {
+        let o = &obs[k];
+        followed(o)
+            && o.status != TrackStatus::Tracked
+            && o.center.is_some_and(|b| {
+                obs[..k]
+                    .iter()
+                    .rev()
+                    .take(PARKED_LOOKBACK_FRAMES)
+                    .find_map(|p| p.center)
+                    .is_some_and(|a| (b - a).norm() > PARKED_JUMP_WINDOWS * side)
+            })
     };
     // The stay began where the track came to this place: possibly before these frames, when
     // the first of a still stretch jittered by more than `PARKED_PX` (a look-alike measured
@@ -483,9 +492,8 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     let entered = (obs.len().saturating_sub(PARKED_LOOKBACK_FRAMES).max(1)..obs.len())
         .rev()
         .find(|&k| obs[k - 1].center.is_none_or(|c| (c - at).norm() > stay_px));
-    let thrown_before = entered.filter(|&k| k < start && thrown(&obs[k - 1..=k]));
-    let jumped_in =
-        thrown_before.is_some() || obs[start.saturating_sub(1)..].windows(2).any(thrown);
+    let thrown_before = entered.filter(|&k| k < start && thrown(k));
+    let jumped_in = thrown_before.is_some() || (start.max(1)..obs.len()).any(thrown);
     // Near its home a marker may be held still (a child carried by its parent's pull), but
     // not on a look-alike it knew as static before the track came there, nor far off the
     // line it swings along (a pull is held on that line).
@@ -681,6 +689,26 @@ mod tests {
         let t = thrown(true)?;
         assert_eq!(t.markers[0].misses, 0);
         assert_eq!(last(&t), Some(TrackStatus::Tracked));
+        Ok(())
+    }
+
+    #[test]
+    fn a_track_found_far_away_after_it_was_lost_was_thrown_there() -> Result<()> {
+        // A at home, then lost for a frame (no centre), then found by detection 5 windows
+        // away and standing there: the throw is measured from the last place it had.
+        let (mut t, side, home) = setup()?;
+        let there = Point2::new(home.x + 5.0 * side, home.y + 3.0);
+        park(&mut t, home, 3);
+        park(&mut t, home, 1);
+        park(&mut t, there, PARKED_FRAMES);
+        let len = t.tracks[0].observations.len();
+        let obs = &mut t.tracks[0].observations;
+        obs[len - PARKED_FRAMES - 1].center = None;
+        obs[len - PARKED_FRAMES - 1].status = TrackStatus::Lost;
+        obs[len - PARKED_FRAMES].status = TrackStatus::Recovered;
+        t.learn_parked();
+        assert!(t.markers[0].on_distractor(there));
+        assert_eq!(t.markers[0].misses, PARKED_FRAMES);
         Ok(())
     }
 
