@@ -319,15 +319,12 @@ pub(super) fn candidates_in(
             .filter(|p| on(p, b.bounds.grown(w / 2, h / 2)))
             .copied()
             .collect();
-        if let Some(own) = own.filter(|p| !sharing.is_empty() && on(p, b.bounds.grown(w, h))) {
-            let mut centres = vec![own];
-            centres.extend(sharing);
-            let parts = labeler.split(&region.weights, region.rect, b, &centres);
-            if let Some(part) = parts
-                .first()
-                .filter(|p| p.pixels > 0 && plausible(p, &m.reference))
-            {
-                out.push(measured_at(region, m, part));
+        // `own` near the blob, and the places it shares the blob's pixels with.
+        let beside_own =
+            |with: &[Point2<f64>]| own.filter(|p| !with.is_empty() && on(p, b.bounds.grown(w, h)));
+        if let Some(own) = beside_own(&sharing) {
+            if let Some(part) = own_part(labeler, region, m, b, own, &sharing) {
+                out.push(measured_at(region, m, &part));
             }
             continue;
         }
@@ -339,15 +336,12 @@ pub(super) fn candidates_in(
             .filter(|p| on(p, b.bounds))
             .copied()
             .collect();
-        if let Some(own) = own.filter(|p| !beside.is_empty() && on(p, b.bounds.grown(w, h))) {
-            let mut centres = vec![own];
-            centres.extend(beside);
-            let parts = labeler.split(&region.weights, region.rect, b, &centres);
+        if let Some(own) = beside_own(&beside) {
             let reach = OWN_PART_WINDOWS * window_px(m);
-            if let Some(part) = parts.first().filter(|p| {
-                p.pixels > 0 && plausible(p, &m.reference) && (p.centroid - own).norm() <= reach
-            }) {
-                out.push(measured_at(region, m, part));
+            if let Some(part) = own_part(labeler, region, m, b, own, &beside)
+                .filter(|p| (p.centroid - own).norm() <= reach)
+            {
+                out.push(measured_at(region, m, &part));
                 continue;
             }
         }
@@ -370,6 +364,25 @@ pub(super) fn candidates_in(
         }
     }
     out
+}
+
+/// The part of `blob` nearer to `own` than to any of `others` (weighted 2-means from those
+/// places, [`Labeler::split`]), when it could be the marker.
+fn own_part(
+    labeler: &mut Labeler,
+    region: &Region,
+    m: &MarkerState,
+    blob: &Blob,
+    own: Point2<f64>,
+    others: &[Point2<f64>],
+) -> Option<Blob> {
+    let mut centres = vec![own];
+    centres.extend_from_slice(others);
+    let parts = labeler.split(&region.weights, region.rect, blob, &centres);
+    parts
+        .into_iter()
+        .next()
+        .filter(|p| p.pixels > 0 && plausible(p, &m.reference))
 }
 
 /// A measurement at a blob: its centroid, the window there and its confidence.
