@@ -104,6 +104,11 @@ struct Args {
     /// scans grown by colonization, they are centred and forks put on their parent's axis)
     #[arg(long = "forks-as-grown")]
     forks_as_grown: bool,
+    /// Keep the smooth radii and chains (by default, in full scans, each segment's cylinder
+    /// is fitted to its own points as the last stage; `"growth"` `"fitted_segments"` counts
+    /// them)
+    #[arg(long = "no-cylinder-fits")]
+    no_cylinder_fits: bool,
     /// The cloud's up axis: `z` (the default: the tree frame), `-y` (a level depth
     /// camera's own frame, y down, as `capture_to_cloud` writes it), `y` (Y-up exports),
     /// `x`, `-x` or `-z`. The outputs are turned back into the cloud's frame
@@ -234,6 +239,7 @@ fn run(
         remove_ground: !args.keep_ground,
         separate_leaves: args.separate_leaves,
         centre_forks: !args.forks_as_grown,
+        cylinder_fits: !args.no_cylinder_fits,
         camera_m,
         ..ColonizeConfig::default()
     };

@@ -175,6 +175,13 @@ pub struct ColonizeConfig {
     /// axes 7.1 mm from the truth against 9.4 mm (`docs/validation.md`, "Centring by
     /// forks"). Default true; false gives the model as before.
     pub centre_forks: bool,
+    /// In a full scan, fit each segment's cylinder to its own points as the last stage
+    /// (the circle of least mean distance, where the points go round at least half of it),
+    /// as TreeQSM fits its cylinders; the nodes move by the mean shift of their segments'
+    /// axes and take their own segment's radius. Only with [`Self::radius_fits`] (the pure
+    /// pipe model stays pure). Default true; false leaves the smooth pipe-model radii and
+    /// centred chains.
+    pub cylinder_fits: bool,
     /// Look for a ground plane under the tree (the lowest surface that spreads sideways,
     /// see [`crate::Ground`]) and set its points aside before growth. Default true; the
     /// plane and its points are reported in [`crate::Reconstruction::ground`].
@@ -215,6 +222,7 @@ impl Default for ColonizeConfig {
             radius_fits: true,
             centring: true,
             centre_forks: true,
+            cylinder_fits: true,
             remove_ground: true,
             separate_leaves: false,
             smoothing_iterations: 3,

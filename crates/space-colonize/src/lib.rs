@@ -75,6 +75,7 @@ mod cloud;
 mod config;
 mod error;
 mod fidelity;
+mod fit;
 mod frame;
 mod geometry;
 mod ground;

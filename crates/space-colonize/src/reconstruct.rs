@@ -78,6 +78,9 @@ pub struct GrowthReport {
     /// not asked for or when they disagree with the pipe model by more than a factor of 2
     /// at the median (leaf clumps, not wood).
     pub radius_fits_used: bool,
+    /// Segments whose cylinder was fitted to their own points as the last stage
+    /// ([`ColonizeConfig::cylinder_fits`]; 0 for one-sided views and when not asked for).
+    pub fitted_segments: usize,
     /// With [`Growth::Auto`]: the "model near cloud" of the first space-colonization growth
     /// (before refinement, with pipe-model radii from the trunk radius: the share of its
     /// length within [`NEAR_CLOUD_M`] of a point beyond its surface, see [`crate::fidelity()`]);
@@ -395,8 +398,20 @@ pub fn reconstruct_with_progress(
             (skeleton, fits_used) = radii(&graph)?;
         }
     }
-    let branches = skeleton.branches();
+    // The scan's noise about the smooth model: the fits below follow some of it.
     let surface_noise_m = crate::metrics::surface_noise(&prep.pts, &skeleton);
+    // Each segment's cylinder onto its own points (full scans only: a one-sided view's
+    // half rings cover too little of a circle for a free fit; not for the pure pipe model).
+    let mut fitted_segments = 0;
+    if config.cylinder_fits && config.radius_fits && !p.one_sided {
+        (skeleton, fitted_segments) = crate::fit::fit_segments(
+            &skeleton,
+            &prep.pts,
+            &prep.main,
+            surface_noise_m.unwrap_or(0.0),
+        )?;
+    }
+    let branches = skeleton.branches();
     Ok(Reconstruction {
         growth: GrowthReport {
             iterations: g.iterations + twig_growth.as_ref().map_or(0, |t| t.iterations),
@@ -411,6 +426,7 @@ pub fn reconstruct_with_progress(
             pruned_twigs: pruned,
             far_tips,
             radius_fits_used: fits_used,
+            fitted_segments,
             colonization_near_cloud,
         },
         skeleton,
