@@ -35,7 +35,10 @@
 //!      base and, by default, at every radius a circle fit measures along a branch (a
 //!      straight taper fitted per chain); stubs that do not reach beyond their parent's
 //!      surface, and twig ends more than 2 cm from every point, are removed unless a
-//!      point needs them.
+//!      point needs them;
+//!   6. in a full scan, each segment's cylinder fitted to its own points (least mean
+//!      distance, where they go round at least half of it; [`ColonizeConfig::cylinder_fits`]),
+//!      as TreeQSM fits its cylinders.
 //! - [`Skeleton`]: nodes with parents and radii, [`Branch`]es (chains continuing through each
 //!   fork along the child carrying the most tree), orders, lengths, JSON files.
 //! - [`metrics`]: point-to-surface distances (mean, median, p95, shares within 1/2/5 cm),
