@@ -49,24 +49,24 @@ fn bench(c: &mut Criterion) {
         }
     }
     if full {
+        // The leaf-off coffee tree, a full scan: the default (which fits each segment's
+        // cylinder to its points last) beside the smooth model without that stage.
+        if let Some(points) = real_cloud("rtwig_gymnocladus/cloud.txt") {
+            g.bench_function("coffee_default", |b| {
+                b.iter(|| reconstruct(black_box(&points), &ColonizeConfig::default()).unwrap());
+            });
+            let smooth = ColonizeConfig {
+                cylinder_fits: false,
+                ..ColonizeConfig::default()
+            };
+            g.bench_function("coffee_without_cylinder_fits", |b| {
+                b.iter(|| reconstruct(black_box(&points), &smooth).unwrap());
+            });
+        }
         for name in ["tree7", "tree13", "Paris_Luxembourg_1"] {
-            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../shared/data/pointclouds/adtree")
-                .join(format!("{name}.xyz"));
-            let Ok(text) = std::fs::read_to_string(&path) else {
-                println!("skipped {name}: {} not found", path.display());
+            let Some(points) = real_cloud(&format!("adtree/{name}.xyz")) else {
                 continue;
             };
-            let points: Vec<_> = text
-                .lines()
-                .filter_map(|l| {
-                    let v: Vec<f64> = l
-                        .split_whitespace()
-                        .filter_map(|x| x.parse().ok())
-                        .collect();
-                    (v.len() >= 3).then(|| treemocap::nalgebra::Point3::new(v[0], v[1], v[2]))
-                })
-                .collect();
             g.bench_function(format!("adtree_{name}_levels"), |b| {
                 b.iter(|| reconstruct(black_box(&points), &levels()).unwrap());
             });
@@ -78,6 +78,29 @@ fn bench(c: &mut Criterion) {
         }
     }
     g.finish();
+}
+
+/// A real cloud of `../shared/data/pointclouds/` (XYZ text), read by path; `None`, with a
+/// message, when absent.
+fn real_cloud(rel: &str) -> Option<Vec<treemocap::nalgebra::Point3<f64>>> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/pointclouds")
+        .join(rel);
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        println!("skipped {rel}: {} not found", path.display());
+        return None;
+    };
+    Some(
+        text.lines()
+            .filter_map(|l| {
+                let v: Vec<f64> = l
+                    .split_whitespace()
+                    .filter_map(|x| x.parse().ok())
+                    .collect();
+                (v.len() >= 3).then(|| treemocap::nalgebra::Point3::new(v[0], v[1], v[2]))
+            })
+            .collect(),
+    )
 }
 
 fn levels() -> ColonizeConfig {
