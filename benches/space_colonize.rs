@@ -80,27 +80,19 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-/// A real cloud of `../shared/data/pointclouds/` (XYZ text), read by path; `None`, with a
-/// message, when absent.
+/// A real cloud of `../shared/data/pointclouds/`, read by path with the workspace's point-cloud
+/// reader; `None`, with a message, when absent or unreadable.
 fn real_cloud(rel: &str) -> Option<Vec<treemocap::nalgebra::Point3<f64>>> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/data/pointclouds")
         .join(rel);
-    let Ok(text) = std::fs::read_to_string(&path) else {
-        println!("skipped {rel}: {} not found", path.display());
-        return None;
-    };
-    Some(
-        text.lines()
-            .filter_map(|l| {
-                let v: Vec<f64> = l
-                    .split_whitespace()
-                    .filter_map(|x| x.parse().ok())
-                    .collect();
-                (v.len() >= 3).then(|| treemocap::nalgebra::Point3::new(v[0], v[1], v[2]))
-            })
-            .collect(),
-    )
+    match treemocap::kinect_io::read_point_cloud(&path) {
+        Ok(cloud) => Some(cloud.valid_points().map(|(p, _)| p).collect()),
+        Err(e) => {
+            println!("skipped {rel}: {e}");
+            None
+        }
+    }
 }
 
 fn levels() -> ColonizeConfig {

@@ -14,8 +14,6 @@
 //! nearer the truth (`docs/validation.md`, "Each segment's cylinder fitted to its own
 //! points").
 
-use kiddo::SquaredEuclidean;
-use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use nalgebra::{Point3, Vector3};
 
 use crate::error::Result;
@@ -39,8 +37,6 @@ const FIT_ITERATIONS: usize = 20;
 /// Residuals are floored at this for the weights of the least-absolute fit, metres (a
 /// tenth of a millimetre: far below scan noise, so the fit is an L1 fit in effect).
 const L1_FLOOR_M: f64 = 1e-4;
-/// Cylinders examined per point (nearest by midpoint), as the metrics do.
-const CANDIDATES: usize = 8;
 /// A fit of n points moves the model's axis and radius n / (n + this) of the way to the
 /// fitted ones: the model (smoothed along the chain, anchored to wider cross-sections)
 /// counts as this many points' worth of evidence, so a segment of 5 points is not given
@@ -80,15 +76,6 @@ pub(crate) fn fit_segments(
     Ok((current, fitted))
 }
 
-/// A unit vector across `u`, and the third one of the right-handed frame.
-fn across(u: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
-    let e1 = u
-        .cross(&Vector3::z())
-        .try_normalize(1e-9)
-        .unwrap_or_else(|| u.cross(&Vector3::x()).normalize());
-    (e1, u.cross(&e1))
-}
-
 /// The fitted cylinder of each node's segment (index = node; `None` for the root and where
 /// no fit is trusted).
 fn segment_fits(
@@ -97,58 +84,31 @@ fn segment_fits(
     keep: &[bool],
     noise_m: f64,
 ) -> Vec<Option<SegmentFit>> {
-    let nodes = skeleton.nodes();
-    let mut fits = vec![None; nodes.len()];
-    // Segments: (node, start, unit axis, length).
-    let segs: Vec<(usize, Vector3<f64>, Vector3<f64>, f64)> = nodes
-        .iter()
-        .filter_map(|n| {
-            let a = nodes[n.parent?].position.coords;
-            let d = n.position.coords - a;
-            let len = d.norm();
-            (len > 0.0).then(|| (n.id, a, d / len, len))
-        })
-        .collect();
-    if segs.is_empty() {
-        return fits;
-    }
-    let mids: Vec<[f64; 3]> = segs
-        .iter()
-        .map(|(_, a, u, len)| {
-            let m = a + u * (0.5 * len);
-            [m.x, m.y, m.z]
-        })
-        .collect();
-    let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&mids);
-    let k = crate::cloud::at_least_one(CANDIDATES.min(segs.len()));
+    let mut fits = vec![None; skeleton.nodes().len()];
+    let segs = crate::metrics::cylinders(skeleton);
     // Each kept point along its nearest segment (by surface distance), as that segment's.
     let mut owned: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); segs.len()];
-    for (q, _) in pts.iter().zip(keep).filter(|(_, k)| **k) {
-        let qv = Vector3::from(*q);
-        let best = tree
-            .nearest_n::<SquaredEuclidean>(q, k)
-            .iter()
-            .map(|nb| {
-                let s = nb.item as usize;
-                let (id, a, u, len) = segs[s];
-                let d = crate::metrics::surface_distance(&qv, &a, &u, len, nodes[id].radius_m);
-                (s, d)
-            })
-            .min_by(|x, y| x.1.total_cmp(&y.1));
-        if let Some((s, _)) = best {
-            let (_, a, u, len) = segs[s];
-            let t = (qv - a).dot(&u);
-            if (0.0..=len).contains(&t) {
-                owned[s].push(qv);
+    let kept = pts
+        .iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .map(|(q, _)| Vector3::from(*q));
+    let nearest =
+        crate::metrics::nearest_cylinders(kept.clone(), &segs, crate::metrics::CANDIDATE_CYLINDERS);
+    for (q, n) in kept.zip(nearest) {
+        if let Some((s, _)) = n {
+            let c = &segs[s];
+            if (0.0..=c.len).contains(&(q - c.a).dot(&c.u)) {
+                owned[s].push(q);
             }
         }
     }
-    for (s, (id, a, u, _)) in segs.iter().enumerate() {
-        let r0 = nodes[*id].radius_m;
+    for (s, c) in segs.iter().enumerate() {
+        let (id, a, u, r0) = (c.node, &c.a, &c.u, c.r);
         if owned[s].len() < MIN_SEGMENT_POINTS || r0 <= 0.0 {
             continue;
         }
-        let (e1, e2) = across(u);
+        let (e1, e2) = crate::geometry::across(u);
         let plane: Vec<[f64; 2]> = owned[s]
             .iter()
             .map(|q| {
@@ -161,7 +121,7 @@ fn segment_fits(
             let n = plane.len() as f64;
             let w = n / (n + PRIOR_POINTS);
             let r = unbiased_radius(r, noise_m);
-            fits[*id] = Some(SegmentFit {
+            fits[id] = Some(SegmentFit {
                 shift: (e1 * c[0] + e2 * c[1]) * w,
                 radius_m: r0 + w * (r - r0),
             });

@@ -33,6 +33,16 @@ pub struct Cylinder {
     pub order: usize,
 }
 
+/// Two unit vectors across unit direction `t` (the first horizontal where `t` is not
+/// vertical), right-handed with it: the plane of a branch's cross-section.
+pub(crate) fn across(t: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let u = t
+        .cross(&Vector3::z())
+        .try_normalize(1e-9)
+        .unwrap_or_else(|| t.cross(&Vector3::x()).normalize());
+    (u, t.cross(&u))
+}
+
 /// The cylinders of a skeleton: one per node with a parent. As in TreeQSM's tables, a
 /// branch starts on its parent's surface: the part of its first segments inside the parent
 /// ([`Skeleton::inside_parent_m`]) is left out, and segments wholly inside or of zero

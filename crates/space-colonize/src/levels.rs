@@ -325,13 +325,7 @@ fn is_ring(pts: &[[f64; 3]], members: &[u32], axis: Option<Vector3<f64>>) -> boo
         .fold(Vector3::zeros(), |a, &i| a + Vector3::from(pts[i as usize]))
         / n;
     let (u, v) = match axis.and_then(|a| a.try_normalize(1e-12)) {
-        Some(t) => {
-            let u = t
-                .cross(&Vector3::z())
-                .try_normalize(1e-9)
-                .unwrap_or_else(|| t.cross(&Vector3::x()).normalize());
-            (u, t.cross(&u))
-        }
+        Some(t) => crate::geometry::across(&t),
         None => {
             let mut cov = Matrix3::zeros();
             for &i in members {

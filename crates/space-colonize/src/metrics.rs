@@ -13,7 +13,7 @@ use crate::skeleton::Skeleton;
 pub const NEAR_CLOUD_M: f64 = 0.02;
 /// Cylinders examined per point (nearest by midpoint); the nearest surface is among them
 /// for segments no longer than the spacing of the nodes.
-const CANDIDATE_CYLINDERS: usize = 8;
+pub(crate) const CANDIDATE_CYLINDERS: usize = 8;
 
 /// Cylinders (nearest by midpoint) among which a point's distance to the model is sought
 /// when choosing what the twig pass grows toward. With the metrics' 8, a point on a thick
@@ -95,14 +95,18 @@ pub(crate) fn point_distances_among(
     distances(pts.iter().map(|p| Vector3::from(*p)), &cyls, candidates)
 }
 
-struct Cyl {
-    a: Vector3<f64>,
-    u: Vector3<f64>,
-    len: f64,
-    r: f64,
+/// A skeleton segment as a cylinder: from its parent's position `a` along unit `u` for
+/// `len`, radius `r`; `node` is the node it ends at.
+pub(crate) struct Cyl {
+    pub node: usize,
+    pub a: Vector3<f64>,
+    pub u: Vector3<f64>,
+    pub len: f64,
+    pub r: f64,
 }
 
-fn cylinders(skeleton: &Skeleton) -> Vec<Cyl> {
+/// The skeleton's segments of positive length, node to node.
+pub(crate) fn cylinders(skeleton: &Skeleton) -> Vec<Cyl> {
     let nodes = skeleton.nodes();
     nodes
         .iter()
@@ -111,6 +115,7 @@ fn cylinders(skeleton: &Skeleton) -> Vec<Cyl> {
             let d = x.position.coords - p;
             let len = d.norm();
             (len > 0.0).then(|| Cyl {
+                node: x.id,
                 a: p,
                 u: d / len,
                 len,
@@ -134,8 +139,21 @@ fn distances(
     cyls: &[Cyl],
     candidates: usize,
 ) -> Vec<f64> {
+    nearest_cylinders(points, cyls, candidates)
+        .into_iter()
+        .map(|n| n.map_or(f64::INFINITY, |(_, d)| d))
+        .collect()
+}
+
+/// Each point's nearest cylinder by surface distance among the `candidates` with the
+/// nearest midpoints: its index in `cyls` and the distance (`None` without cylinders).
+pub(crate) fn nearest_cylinders(
+    points: impl Iterator<Item = Vector3<f64>>,
+    cyls: &[Cyl],
+    candidates: usize,
+) -> Vec<Option<(usize, f64)>> {
     if cyls.is_empty() {
-        return points.map(|_| f64::INFINITY).collect();
+        return points.map(|_| None).collect();
     }
     let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(&midpoints(cyls));
     let k = crate::cloud::at_least_one(candidates.min(cyls.len()));
@@ -144,10 +162,11 @@ fn distances(
             tree.nearest_n::<SquaredEuclidean>(&[q.x, q.y, q.z], k)
                 .iter()
                 .map(|nb| {
-                    let c = &cyls[nb.item as usize];
-                    surface_distance(&q, &c.a, &c.u, c.len, c.r)
+                    let i = nb.item as usize;
+                    let c = &cyls[i];
+                    (i, surface_distance(&q, &c.a, &c.u, c.len, c.r))
                 })
-                .fold(f64::INFINITY, f64::min)
+                .min_by(|x, y| x.1.total_cmp(&y.1))
         })
         .collect()
 }

@@ -257,11 +257,7 @@ impl Graph {
         span: usize,
     ) -> Option<(Vector3<f64>, Vector3<f64>)> {
         let t = self.tangent(i, children, span)?;
-        let u = t
-            .cross(&Vector3::z())
-            .try_normalize(1e-9)
-            .unwrap_or_else(|| t.cross(&Vector3::x()).normalize());
-        let v = t.cross(&u);
+        let (u, v) = crate::geometry::across(&t);
         plane.clear();
         let o = self.pos[i];
         let mut add = |n: usize| {
