@@ -117,6 +117,7 @@ impl Blob {
 pub(crate) struct Labeler {
     /// The area labelled in the last run (image coordinates).
     area: PixelRect,
+    /// Per pixel of the area (row-major, its width), the label of its run; `NONE` off runs.
     labels: Vec<u32>,
     /// The foreground of the row being labelled, a bit per pixel.
     bits: Vec<u64>,
@@ -202,13 +203,23 @@ impl Labeler {
         if area.is_empty() || weights.len() != rect.area() as usize {
             return Vec::new();
         }
+        // The labels hold `NONE` everywhere but on the last run's runs: those are cleared,
+        // not the whole buffer (most of a gate is background).
+        let last_w = self.area.width as usize;
+        for (y, &start) in self.row_runs.iter().enumerate() {
+            let end = self.row_runs.get(y + 1).copied().unwrap_or(self.runs.len());
+            for r in &self.runs[start..end] {
+                self.labels[y * last_w + r.x0..y * last_w + r.x1].fill(NONE);
+            }
+        }
         self.area = area;
         let (w, h) = (area.width as usize, area.height as usize);
         let stride = rect.width as usize;
         let offset = (area.y - rect.y) as usize * stride + (area.x - rect.x) as usize;
         let at = |x: usize, y: usize| weights[offset + y * stride + x];
-        self.labels.clear();
-        self.labels.resize(w * h, NONE);
+        if self.labels.len() < w * h {
+            self.labels.resize(w * h, NONE);
+        }
         self.parent.clear();
         self.runs.clear();
         self.row_runs.clear();
@@ -622,6 +633,52 @@ mod tests {
                     assert_eq!(b.pixels, *pixels, "density {density} gap {gap}");
                     assert!((b.mass - mass).abs() < 1e-6 * mass, "density {density}");
                 }
+            }
+        }
+    }
+
+    /// A labeler used before on areas of other sizes (its labels cleared run by run, not
+    /// whole) finds, centres and splits blobs as a fresh one does.
+    #[test]
+    fn a_reused_labeler_answers_as_a_fresh_one() {
+        let mut rng = crate::rng::Rng::new(29);
+        let mut reused = Labeler::default();
+        for (w, h, within) in [
+            (70, 40, None),
+            (23, 61, None),
+            (90, 12, Some(PixelRect::new(10, 2, 40, 8))),
+            (41, 41, None),
+            (8, 5, None),
+            (64, 30, None),
+        ] {
+            let rect = PixelRect::new(-3, 5, w, h);
+            let weights: Vec<f32> = (0..w * h)
+                .map(|_| {
+                    if rng.uniform() < 0.35 {
+                        60.0 + 100.0 * rng.uniform() as f32
+                    } else {
+                        20.0 * rng.uniform() as f32
+                    }
+                })
+                .collect();
+            let within = within.map_or(rect, |r| r.shifted(rect.x, rect.y));
+            let mut fresh = Labeler::default();
+            let a = reused.blobs(&weights, rect, within, 50.0, 2, 1);
+            let b = fresh.blobs(&weights, rect, within, 50.0, 2, 1);
+            assert_eq!(format!("{a:?}"), format!("{b:?}"), "{w}x{h}");
+            assert!(!a.is_empty(), "{w}x{h}: no blob to compare");
+            for blob in a.iter().take(3) {
+                let window = blob.bounds.grown(4, 4);
+                let ca = reused.edge_centroid(&weights, rect, blob, window, 3);
+                let cb = fresh.edge_centroid(&weights, rect, blob, window, 3);
+                assert_eq!(ca, cb, "{w}x{h}");
+                let centres = [
+                    Point2::new(f64::from(blob.bounds.x), f64::from(blob.bounds.y)),
+                    Point2::new(blob.bounds.right() as f64, blob.bounds.bottom() as f64),
+                ];
+                let sa = reused.split(&weights, rect, blob, &centres);
+                let sb = fresh.split(&weights, rect, blob, &centres);
+                assert_eq!(format!("{sa:?}"), format!("{sb:?}"), "{w}x{h}");
             }
         }
     }
