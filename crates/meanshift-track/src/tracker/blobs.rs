@@ -404,6 +404,7 @@ pub(super) fn measured_at(region: &mut Region, m: &MarkerState, blob: &Blob) -> 
         holds: blob.bounds.grown(1, 1),
         confidence: confidence.clamp(0.0, 1.0),
         moments: moments_of(region, window),
+        cut: false,
     }
 }
 
@@ -429,6 +430,7 @@ pub(super) fn template_candidates(
                 holds: window,
                 confidence: found.ncc.max(0.0),
                 moments: None,
+                cut: false,
             }
         })
         .collect()
@@ -452,6 +454,7 @@ pub(super) fn plain(region: &Region, mode: Mode) -> Measured {
         holds: mode.window,
         confidence: mode.confidence,
         moments: mode.moments.or_else(|| moments_of(region, mode.window)),
+        cut: false,
     }
 }
 

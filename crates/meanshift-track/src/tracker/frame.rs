@@ -410,8 +410,9 @@ impl Tracker {
                         status
                     };
                     let mut o = m.found(q, status, &self.config, depth, frame_index);
-                    if o.confidence < TRUSTED_CONFIDENCE {
-                        // Followed, but not a place to stand behind: reported as an estimate.
+                    if o.confidence < TRUSTED_CONFIDENCE || q.cut {
+                        // Followed, but not a place to stand behind (too unlike the marker,
+                        // or a blob the quick pass's region cut): reported as an estimate.
                         o.status = TrackStatus::Predicted;
                     }
                     m.learn_appearance(q.confidence, context);
@@ -567,6 +568,7 @@ mod tests {
             holds: PixelRect::centered_at(home, 11, 11),
             confidence,
             moments: None,
+            cut: false,
         };
         let b = t.markers[1].home;
         let b_found = |confidence| {
@@ -911,6 +913,7 @@ mod tests {
                     holds: window,
                     confidence: 0.95,
                     moments: None,
+                    cut: false,
                 };
                 let status = if k == 2 { status } else { TrackStatus::Tracked };
                 Some((q, status, None))
@@ -983,6 +986,7 @@ mod tests {
                 holds: window,
                 confidence,
                 moments: None,
+                cut: false,
             };
             (measured, Some(context))
         };

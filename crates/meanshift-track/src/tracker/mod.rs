@@ -430,6 +430,9 @@ struct Measured {
     confidence: f64,
     /// Moments of the window and a border (histogram models), for the adaptive size.
     moments: Option<Moments>,
+    /// Whether the blob reaches the edge of the quick pass's region where the image goes on
+    /// (see [`cut_by`]): its centre may be pulled back from the marker's.
+    cut: bool,
 }
 
 /// A candidate of one marker, with its surroundings' correlation and its cost.

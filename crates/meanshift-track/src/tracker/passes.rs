@@ -20,7 +20,7 @@ impl Tracker {
         let pred = predictions[i];
         let side = window_px(m);
         let wide = m.gate_var + manoeuvre_var(&self.config, side, m.misses, frame_side);
-        let found: Vec<Measured>;
+        let mut found: Vec<Measured>;
         let mut fallback = None;
         if let (Some(t), true) = (&m.template, self.config.recovery) {
             let radius = (GATE_CHI2 * m.gate_var)
@@ -67,6 +67,10 @@ impl Tracker {
                 &others,
                 &look_alikes,
             );
+            let image = (self.width, self.height);
+            found
+                .iter_mut()
+                .for_each(|c| c.cut = cut_by(c.holds, region, image));
             fallback = Some(Measured {
                 confidence: plain_mode.confidence * 0.5,
                 ..plain_mode
@@ -669,6 +673,17 @@ fn quick_region(m: &MarkerState, pred: Point2<f64>) -> PixelRect {
     PixelRect::centered_at(pred, w, h).grown(w, h)
 }
 
+/// Whether a blob whose pixels (grown by one) are `holds` reaches the edge of `region`
+/// where the image goes on beyond it: the region cut it, and its centre lies nearer the
+/// region's middle than the whole blob's (a release's streak running out of the quick
+/// pass's region about a lagging prediction).
+fn cut_by(holds: PixelRect, region: PixelRect, (width, height): (u32, u32)) -> bool {
+    (holds.x < region.x && region.x > 0)
+        || (holds.y < region.y && region.y > 0)
+        || (holds.right() > region.right() && region.right() < i64::from(width))
+        || (holds.bottom() > region.bottom() && region.bottom() < i64::from(height))
+}
+
 /// The region detection weighs for marker `m` in `gate`: the gate and a window more.
 fn detection_region(m: &MarkerState, gate: &Gate) -> PixelRect {
     let (w, h) = m.size;
@@ -692,6 +707,54 @@ struct Gate {
 mod tests {
     use super::*;
     use crate::tracker::two_red_markers;
+
+    #[test]
+    fn a_streak_the_quick_region_cuts_is_followed_but_reported_as_an_estimate() -> Result<()> {
+        let mut t = two_red_markers()?;
+        // A released: a streak from its place to 40 px right of it, longer than the quick
+        // pass's region of 3x3 windows about its prediction reaches.
+        let frame = RgbImage::from_fn(192, 64, |x, y| {
+            let a = (16..=60).contains(&x) && y.abs_diff(30) <= 4;
+            let b = x.abs_diff(150) <= 4 && y.abs_diff(30) <= 4;
+            if a || b {
+                image::Rgb([215, 25, 30])
+            } else {
+                image::Rgb([100, 110, 95])
+            }
+        });
+        t.update(&frame, None)?;
+        let o = t.tracks[0].observations[1];
+        let region = quick_region(&t.markers[0], Point2::new(20.0, 30.0));
+        let center = o.center.unwrap_or(Point2::origin());
+        // Followed to the part the region holds (its centre short of the streak's 38 px)...
+        assert!(
+            center.x < region.right() as f64 && center.x > 20.0,
+            "{center}"
+        );
+        // ... which is no place to stand behind.
+        assert_eq!(o.status, TrackStatus::Predicted);
+        assert!(o.confidence > 0.0);
+        // B, whole inside its region, is tracked.
+        assert_eq!(t.tracks[1].observations[1].status, TrackStatus::Tracked);
+        Ok(())
+    }
+
+    #[test]
+    fn a_blob_reaching_the_quick_regions_inner_edge_is_cut_and_one_at_the_image_edge_is_not() {
+        let region = PixelRect::new(100, 50, 40, 40);
+        let image = (640, 480);
+        // Inside with a pixel to spare each way: whole.
+        assert!(!cut_by(PixelRect::new(110, 60, 12, 12), region, image));
+        // Reaching past the left edge (its box grown by one starts left of the region).
+        assert!(cut_by(PixelRect::new(99, 60, 20, 12), region, image));
+        // Past the right and the bottom edge.
+        assert!(cut_by(PixelRect::new(125, 60, 16, 12), region, image));
+        assert!(cut_by(PixelRect::new(110, 80, 12, 11), region, image));
+        // A region at the image's corner: the image's edge cuts nothing.
+        let corner = PixelRect::new(0, 0, 40, 40);
+        assert!(!cut_by(PixelRect::new(-1, -1, 12, 12), corner, image));
+        assert!(cut_by(PixelRect::new(30, 5, 11, 10), corner, image));
+    }
 
     #[test]
     fn another_markers_home_beyond_ones_reach_is_not_ones_place() -> Result<()> {
@@ -721,6 +784,7 @@ mod tests {
             holds: PixelRect::centered_at(Point2::new(home.x + x, home.y), 11, 11),
             confidence: 0.9,
             moments: None,
+            cut: false,
         };
         // Taken by detection 90 px away (it may be a look-alike): the reach stays.
         m.found(at(90.0), TrackStatus::Recovered, &config, None, 1);
