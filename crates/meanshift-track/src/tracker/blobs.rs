@@ -253,6 +253,92 @@ pub(super) fn mean_colour(
     [(s[0] / k) as f32, (s[1] / k) as f32, (s[2] / k) as f32]
 }
 
+/// The saturation (0..255, OpenCV's `S` of HSV) of an RGB pixel, rounded.
+fn saturation([r, g, b]: [u8; 3]) -> u8 {
+    let (hi, lo) = (r.max(g).max(b), r.min(g).min(b));
+    if hi == 0 {
+        0
+    } else {
+        ((u32::from(hi - lo) * 255 + u32::from(hi) / 2) / u32::from(hi)) as u8
+    }
+}
+
+/// The median saturation of the square about `center` whose half-side is [`CORE_WINDOWS`]
+/// of a window of side `window_px` (at least a pixel): the middle of a marker. `None` when
+/// the square lies outside the frame.
+pub(super) fn core_saturation(
+    frame: &RgbImage,
+    center: Point2<f64>,
+    window_px: f64,
+) -> Option<f64> {
+    let half = (CORE_WINDOWS * window_px).round().max(1.0) as i32;
+    let side = 2 * half + 1;
+    let square = PixelRect::centered_at(center, side, side)
+        .intersect(&image_rect(frame.width(), frame.height()));
+    let mut values: Vec<u8> = Vec::with_capacity(square.area() as usize);
+    for y in square.y..square.bottom() as i32 {
+        for x in square.x..square.right() as i32 {
+            values.push(saturation(frame.get_pixel(x as u32, y as u32).0));
+        }
+    }
+    if values.is_empty() {
+        return None;
+    }
+    let mid = values.len() / 2;
+    Some(f64::from(*values.select_nth_unstable(mid).1))
+}
+
+/// A paler look-alike touching a colour marker, learnt as one blob with it on the first
+/// frame (a reddish-brown knot beside a red marker): the median saturation of the pixels
+/// of `blob` (its box in `region`, weights at or above `threshold`) that are more than
+/// [`PALER_LEVELS`] under the marker's core saturation `core`, when they are at least
+/// [`PALER_SHARE`] of the others (the marker's own) and centred at least
+/// [`PALER_OFFSET_WINDOWS`] of a window (`window_px`) off them: a marker's rim, blended with
+/// the background, is paler too, but a few pixels all round it.
+pub(super) fn paler_part(
+    frame: &RgbImage,
+    region: &Region,
+    threshold: f32,
+    blob: PixelRect,
+    core: f64,
+    window_px: f64,
+) -> Option<f64> {
+    let b = blob.intersect(&region.rect);
+    let limit = core - PALER_LEVELS;
+    let (mut own, mut paler) = ((0.0, 0.0, 0usize), (0.0, 0.0, Vec::new()));
+    for y in b.y..b.bottom() as i32 {
+        for x in b.x..b.right() as i32 {
+            if region.weights[region.index(x, y)] < threshold {
+                continue;
+            }
+            let s = saturation(frame.get_pixel(x as u32, y as u32).0);
+            if f64::from(s) < limit {
+                paler.0 += f64::from(x);
+                paler.1 += f64::from(y);
+                paler.2.push(s);
+            } else {
+                own.0 += f64::from(x);
+                own.1 += f64::from(y);
+                own.2 += 1;
+            }
+        }
+    }
+    let n_paler = paler.2.len();
+    if own.2 < FRAGMENT_MIN_PIXELS || (n_paler as f64) < PALER_SHARE * own.2 as f64 {
+        return None;
+    }
+    let (n_own, n_pal) = (own.2 as f64, n_paler as f64);
+    let offset = Vector2::new(
+        paler.0 / n_pal - own.0 / n_own,
+        paler.1 / n_pal - own.1 / n_own,
+    );
+    if offset.norm() < PALER_OFFSET_WINDOWS * window_px {
+        return None;
+    }
+    let mid = n_paler / 2;
+    Some(f64::from(*paler.2.select_nth_unstable(mid).1))
+}
+
 /// True when a blob could be the marker: wide as the marker (blur makes a streak longer, not
 /// wider), not longer than a streak can be, with enough of its pixels.
 pub(super) fn plausible(blob: &Blob, r: &Reference) -> bool {

@@ -24,7 +24,56 @@ impl Tracker {
             config.background_weighting,
         )?;
         let mask = marker_mask(frame, w, &config.model, &config.hsv_mask);
-        let lookup = Lookup::new(&config.model, &model, &mask);
+        let (mut state, mut measured) = self.learn(frame, depth, init, model.clone(), &mask);
+        // A paler look-alike touching the marker, learnt as one blob with it: the marker is
+        // learnt again with a saturation floor between the two, which keeps the look-alike
+        // out of its weights (its blurred streaks still count by their blend with the
+        // background), and starts at its own centre.
+        if let Some(floor) = self.paler_floor(frame, &state, &measured, &mask) {
+            let raised = ChannelRange {
+                lower: [mask.lower[0], floor, mask.lower[2]],
+                upper: mask.upper,
+            };
+            (state, measured) = self.learn(frame, depth, init, model, &raised);
+        }
+        let observation = Observation {
+            center: Some(measured.center),
+            window: measured.window,
+            status: TrackStatus::Tracked,
+            confidence: measured.confidence,
+        };
+        state.last_center = measured.center;
+        state.home = measured.center;
+        state.filter.position = measured.center;
+        if self.config.context_check {
+            state.context = Some(Template::learn(
+                frame,
+                measured.center,
+                (w.width * CONTEXT_SCALE) as usize,
+                (w.height * CONTEXT_SCALE) as usize,
+            ));
+        }
+        self.markers.push(state);
+        self.tracks.push(Track {
+            id: init.id.clone(),
+            observations: vec![observation],
+        });
+        Ok(())
+    }
+
+    /// Marker `init`'s state learnt from the first frame with `model` under `mask` (its
+    /// reference blob and colour), and where it is on that frame.
+    fn learn(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        init: &MarkerInit,
+        model: MarkerModel,
+        mask: &ChannelRange,
+    ) -> (MarkerState, Measured) {
+        let w = init.window;
+        let config = &self.config;
+        let lookup = Lookup::new(&config.model, &model, mask);
         let center = w.center();
         let mut state = MarkerState::new(init.id.clone(), model, lookup, w);
         // The reference: the window's mass, and the blob of the marker in it.
@@ -87,29 +136,41 @@ impl Tracker {
         } else {
             plain(&self.region, mode)
         };
-        let observation = Observation {
-            center: Some(measured.center),
-            window: measured.window,
-            status: TrackStatus::Tracked,
-            confidence: measured.confidence,
-        };
-        state.last_center = measured.center;
-        state.home = measured.center;
-        state.filter.position = measured.center;
-        if self.config.context_check {
-            state.context = Some(Template::learn(
-                frame,
-                measured.center,
-                (w.width * CONTEXT_SCALE) as usize,
-                (w.height * CONTEXT_SCALE) as usize,
-            ));
+        (state, measured)
+    }
+
+    /// The saturation floor (8-bit levels) that keeps a paler look-alike touching a colour
+    /// marker out of its weights, when the marker's first blob holds one (see
+    /// [`paler_part`]): halfway between the marker's core saturation and the look-alike's
+    /// median, never below `mask`'s. `None` for one-channel and kernel models, and for a
+    /// blob without such a part.
+    fn paler_floor(
+        &self,
+        frame: &RgbImage,
+        state: &MarkerState,
+        measured: &Measured,
+        mask: &ChannelRange,
+    ) -> Option<u8> {
+        if !self.config.recovery
+            || !matches!(
+                self.config.model,
+                AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. }
+            )
+        {
+            return None;
         }
-        self.markers.push(state);
-        self.tracks.push(Track {
-            id: init.id.clone(),
-            observations: vec![observation],
-        });
-        Ok(())
+        let side = window_px(state);
+        let core = core_saturation(frame, measured.center, side)?;
+        let paler = paler_part(
+            frame,
+            &self.region,
+            state.reference.threshold,
+            measured.holds,
+            core,
+            side,
+        )?;
+        let floor = (0.5 * (core + paler)).round().clamp(0.0, 255.0) as u8;
+        Some(floor.max(mask.lower[1]))
     }
 
     /// A marker's window must hold pixels and lie entirely inside the frame.
@@ -219,6 +280,62 @@ mod tests {
         assert!((center - truth).norm() < 2.5, "{center}");
         let pixels = t.markers[0].reference.pixels;
         assert!(pixels <= 1.3 * alone, "{pixels} against {alone}");
+        Ok(())
+    }
+
+    /// A red disc of radius 7 px at (`marker_x`, 32) on grey, in front of a reddish-brown
+    /// one of radius 8 (saturation about 180 against the red's 225, hue 4: in a bin of the
+    /// red's) at
+    /// (45, 37), which it half covers when it is at 40.
+    fn red_beside_brown(marker_x: f64) -> RgbImage {
+        RgbImage::from_fn(112, 64, |x, y| {
+            let d2 = |cx: f64, cy: f64, r: f64| {
+                let (dx, dy) = (f64::from(x) - cx, f64::from(y) - cy);
+                dx * dx + dy * dy <= r * r
+            };
+            if d2(marker_x, 32.0, 7.0) {
+                // Red on both sides of hue 0 (179 and 1), as a real red marker is.
+                if (x + y) % 2 == 0 {
+                    image::Rgb([215, 25, 30])
+                } else {
+                    image::Rgb([215, 30, 25])
+                }
+            } else if d2(45.0, 37.0, 8.0) {
+                image::Rgb([150, 60, 45])
+            } else {
+                image::Rgb([100, 110, 95])
+            }
+        })
+    }
+
+    #[test]
+    fn a_paler_look_alike_touching_the_marker_is_kept_out_of_it() -> Result<()> {
+        let init = MarkerInit {
+            id: "A".into(),
+            window: PixelRect::new(32, 24, 17, 17),
+        };
+        let mut t = Tracker::new(
+            TrackerConfig::default(),
+            &red_beside_brown(40.0),
+            None,
+            &[init],
+        )?;
+        // It starts on the red disc, and its blob is the red disc's (about 150 pixels), not
+        // the pair's.
+        let start = t.tracks[0].observations[0]
+            .center
+            .unwrap_or(Point2::origin());
+        assert!((start - Point2::new(40.0, 32.0)).norm() < 1.0, "{start}");
+        let pixels = t.markers[0].reference.pixels;
+        assert!((120.0..=190.0).contains(&pixels), "{pixels}");
+        // Pulled away from the look-alike, it is followed, not left on the look-alike.
+        for step in 1..=6 {
+            t.update(&red_beside_brown(40.0 - 3.0 * f64::from(step)), None)?;
+        }
+        let last = t.tracks[0].observations[6];
+        let at = last.center.unwrap_or(Point2::origin());
+        assert!((at - Point2::new(22.0, 32.0)).norm() < 1.5, "{at}");
+        assert_eq!(last.status, TrackStatus::Tracked);
         Ok(())
     }
 }

@@ -322,6 +322,20 @@ const ONE_BLOB_SHARE: f64 = 0.8;
 /// Blob pixels are those whose weight is at least this share of the marker's typical pixel
 /// weight.
 const BLOB_THRESHOLD: f32 = 0.35;
+/// Half-side of the square whose median saturation is a marker's core saturation, as a
+/// share of the window's side: the middle of a marker, clear of its rim.
+const CORE_WINDOWS: f64 = 0.2;
+/// Levels under a marker's core saturation from which a pixel of its first blob is paler
+/// than the marker (noise and JPEG move a marker's pixels by a few levels; a reddish-brown
+/// look-alike beside a red marker is 40–60 paler).
+const PALER_LEVELS: f64 = 36.0;
+/// Paler pixels of a marker's first blob, as a share of its own, that make a touching
+/// look-alike rather than a rim (a marker's rim on the stress sequences is 1–20 % of its
+/// pixels).
+const PALER_SHARE: f64 = 0.4;
+/// Least distance (windows) of the paler pixels' centroid from the marker's own for them to
+/// be a look-alike beside it, not its rim all round.
+const PALER_OFFSET_WINDOWS: f64 = 0.25;
 /// A blob needs at least this share of the marker's pixels (a partly covered marker).
 const BLOB_MIN_PIXELS: f64 = 0.15;
 /// A candidate blob's width (minor axis) lies within these multiples of the marker's.
