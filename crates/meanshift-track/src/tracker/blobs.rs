@@ -253,14 +253,9 @@ pub(super) fn mean_colour(
     [(s[0] / k) as f32, (s[1] / k) as f32, (s[2] / k) as f32]
 }
 
-/// The saturation (0..255, OpenCV's `S` of HSV) of an RGB pixel, rounded.
-fn saturation([r, g, b]: [u8; 3]) -> u8 {
-    let (hi, lo) = (r.max(g).max(b), r.min(g).min(b));
-    if hi == 0 {
-        0
-    } else {
-        ((u32::from(hi - lo) * 255 + u32::from(hi) / 2) / u32::from(hi)) as u8
-    }
+/// The saturation (0..255) of an RGB pixel, as OpenCV's `COLOR_RGB2HSV` gives it.
+fn saturation(p: [u8; 3]) -> u8 {
+    crate::hsv::rgb_to_hsv(p)[1]
 }
 
 /// The median saturation of the square about `center` whose half-side is [`CORE_WINDOWS`]

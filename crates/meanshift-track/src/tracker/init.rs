@@ -284,9 +284,8 @@ mod tests {
     }
 
     /// A red disc of radius 7 px at (`marker_x`, 32) on grey, in front of a reddish-brown
-    /// one of radius 8 (saturation about 180 against the red's 225, hue 4: in a bin of the
-    /// red's) at
-    /// (45, 37), which it half covers when it is at 40.
+    /// one of radius 8 at (45, 37) (saturation about 180 against the red's 225; hue 4, in a
+    /// bin of the red's), which it half covers when it is at 40.
     fn red_beside_brown(marker_x: f64) -> RgbImage {
         RgbImage::from_fn(112, 64, |x, y| {
             let d2 = |cx: f64, cy: f64, r: f64| {
