@@ -405,7 +405,10 @@ pub(super) fn candidates_in(
             |with: &[Point2<f64>]| own.filter(|p| !with.is_empty() && on(p, b.bounds.grown(w, h)));
         if let Some(own) = beside_own(&sharing) {
             if let Some(part) = own_part(labeler, region, m, b, own, &sharing) {
-                out.push(measured_at(region, m, &part));
+                out.push(Measured {
+                    split: true,
+                    ..measured_at(region, m, &part)
+                });
             }
             continue;
         }
@@ -486,6 +489,7 @@ pub(super) fn measured_at(region: &mut Region, m: &MarkerState, blob: &Blob) -> 
         confidence: confidence.clamp(0.0, 1.0),
         moments: moments_of(region, window),
         cut: false,
+        split: false,
     }
 }
 
@@ -512,6 +516,7 @@ pub(super) fn template_candidates(
                 confidence: found.ncc.max(0.0),
                 moments: None,
                 cut: false,
+                split: false,
             }
         })
         .collect()
@@ -536,6 +541,7 @@ pub(super) fn plain(region: &Region, mode: Mode) -> Measured {
         confidence: mode.confidence,
         moments: mode.moments.or_else(|| moments_of(region, mode.window)),
         cut: false,
+        split: false,
     }
 }
 
@@ -581,6 +587,29 @@ pub(super) fn taken(
     let mine = window_px(&markers[i]);
     claimed.iter().any(|&(j, _, c)| {
         j != i && (c - at).norm() < EXCLUSION_FRACTION * 0.5 * (mine + window_px(&markers[j]))
+    })
+}
+
+/// [`taken`] for a quick-pass measurement: two parts of one blob that the split gave to two
+/// markers (both [`Measured::split`]) are two markers' places when their centres are
+/// [`SPLIT_EXCLUSION_FRACTION`] of a window apart; a marker partly behind another of its
+/// look is that close to it while the two cross.
+pub(super) fn taken_part(
+    markers: &[MarkerState],
+    i: usize,
+    at: Measured,
+    claimed: &[(usize, PixelRect, Point2<f64>)],
+    quick: &[Option<Scored>],
+) -> bool {
+    let mine = window_px(&markers[i]);
+    claimed.iter().any(|&(j, _, c)| {
+        let both_split = at.split && quick[j].is_some_and(|q| q.measured.split);
+        let fraction = if both_split {
+            SPLIT_EXCLUSION_FRACTION
+        } else {
+            EXCLUSION_FRACTION
+        };
+        j != i && (c - at.center).norm() < fraction * 0.5 * (mine + window_px(&markers[j]))
     })
 }
 

@@ -55,7 +55,7 @@ impl Tracker {
                         .line()
                         .is_none_or(|l| l.offset(c).abs() <= LINE_ACCEPT_SPREADS))
                 && !(self.config.exclusive
-                    && (taken(&self.markers, i, c, &claimed)
+                    && (taken_part(&self.markers, i, q.measured, &claimed, quick)
                         || nearer_to_other(&self.markers, i, c, predictions)));
             if accept {
                 claimed.push((i, q.measured.holds, c));
@@ -569,6 +569,7 @@ mod tests {
             confidence,
             moments: None,
             cut: false,
+            split: false,
         };
         let b = t.markers[1].home;
         let b_found = |confidence| {
@@ -914,6 +915,7 @@ mod tests {
                     confidence: 0.95,
                     moments: None,
                     cut: false,
+                    split: false,
                 };
                 let status = if k == 2 { status } else { TrackStatus::Tracked };
                 Some((q, status, None))
@@ -987,6 +989,7 @@ mod tests {
                 confidence,
                 moments: None,
                 cut: false,
+                split: false,
             };
             (measured, Some(context))
         };

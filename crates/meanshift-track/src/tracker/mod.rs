@@ -103,6 +103,11 @@ const ACCELERATION_MIN_PX: f64 = 0.7;
 const ACCELERATION_RATE: f64 = 0.3;
 /// Markers closer than this fraction of their mean window size are on the same blob.
 const EXCLUSION_FRACTION: f64 = 0.75;
+/// [`EXCLUSION_FRACTION`] between two parts of one blob that the split gave to two markers
+/// found in the last frame: a marker partly behind another of its look is 0.6–0.75 of a
+/// window from it while they cross (crossing seeds, 4 December 2026), while the two halves
+/// of one marker's disc are about 0.42 of its width apart, under this.
+const SPLIT_EXCLUSION_FRACTION: f64 = 0.5;
 /// The context template is this many times the window in each direction: the marker and
 /// half a window of its surroundings on every side.
 const CONTEXT_SCALE: i32 = 2;
@@ -447,6 +452,9 @@ struct Measured {
     /// Whether the blob reaches the edge of the quick pass's region where the image goes on
     /// (see [`cut_by`]): its centre may be pulled back from the marker's.
     cut: bool,
+    /// Whether this is a part of a blob shared with another marker's prediction (see
+    /// [`candidates_in`]).
+    split: bool,
 }
 
 /// A candidate of one marker, with its surroundings' correlation and its cost.

@@ -785,6 +785,7 @@ mod tests {
             confidence: 0.9,
             moments: None,
             cut: false,
+            split: false,
         };
         // Taken by detection 90 px away (it may be a look-alike): the reach stays.
         m.found(at(90.0), TrackStatus::Recovered, &config, None, 1);

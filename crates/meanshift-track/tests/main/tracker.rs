@@ -123,6 +123,42 @@ fn a_fast_jump_is_recovered_and_a_same_colour_neighbour_is_not_taken() {
     }
 }
 
+#[test]
+fn two_markers_of_one_colour_passing_partly_in_front_of_each_other_are_both_followed() {
+    // A passes in front of B, 10 px above it at the closest, each 14 px wide: for a few
+    // frames the two make one blob, which is split between them; both parts are kept, and
+    // neither marker coasts while in plain view.
+    let path = |k: usize| {
+        let x = 18.0 + 2.0 * k as f64;
+        ((x, 27.0), (96.0 - x, 37.0))
+    };
+    let frame = |k: usize| {
+        let (a, b) = path(k);
+        disc_frame(&[(a.0, a.1, 7.0, MARKER_RGB), (b.0, b.1, 7.0, MARKER_RGB)])
+    };
+    let inits = [init("A", 11, 20, 15), init("B", 71, 30, 15)];
+    let mut t = Tracker::new(TrackerConfig::default(), &frame(0), None, &inits).expect("valid");
+    let frames = 31;
+    for k in 1..frames {
+        t.update(&frame(k), None).expect("same size");
+    }
+    let mut merged = 0;
+    for k in 1..frames {
+        let (a, b) = path(k);
+        merged += usize::from((a.0 - b.0).hypot(a.1 - b.1) < 14.0);
+        for (track, truth) in t.tracks().iter().zip([a, b]) {
+            let o = track.observations[k];
+            let off = o.center.map(|c| (c - Point2::new(truth.0, truth.1)).norm());
+            assert!(
+                o.status == TrackStatus::Tracked && off.is_some_and(|d| d <= TOLERANCE_PX),
+                "{} frame {k}: {o:?}, truth {truth:?}",
+                track.id
+            );
+        }
+    }
+    assert!(merged >= 4, "the discs touch on {merged} frames");
+}
+
 /// A row of look-alike targets (white squares with a black dot on a rod, 40 px apart)
 /// shifted by `offset`; the one at x = 100 sits on a hub (a dark post above and below it).
 fn target_row(offset: f64) -> RgbImage {
