@@ -48,7 +48,7 @@ impl Tracker {
                 && q.measured.confidence >= self.config.min_confidence
                 && m.typical(q.measured.confidence)
                 && d2[i] <= GATE_CHI2
-                && !m.on_distractor(c)
+                && !m.on_look_alike(&q.measured)
                 && familiar
                 && (!crowded(&self.markers, i)
                     || m.swing
@@ -600,6 +600,41 @@ mod tests {
             trusted.center,
             Some(Point2::new(home.x + 0.6 * side, home.y))
         );
+        Ok(())
+    }
+
+    #[test]
+    fn a_part_of_a_remembered_look_alike_is_that_look_alike_wherever_it_is_centred() -> Result<()> {
+        let (mut t, side, home) = setup()?;
+        // A look-alike 18 px wide whose box was seen twice where it is, centred at one end
+        // (a twig cut it, and its lower part was the blob then).
+        let box_of = PixelRect::new((home.x + 4.0 * side) as i32, (home.y + side) as i32, 14, 30);
+        let seen_at = Point2::new(f64::from(box_of.x) + 7.0, f64::from(box_of.y) + 20.0);
+        for frame in 0..2 {
+            remember_distractor(&mut t.markers[0], seen_at, box_of, side, frame);
+        }
+        let measured = |holds: PixelRect| Measured {
+            center: Point2::new(
+                f64::from(holds.x) + 0.5 * f64::from(holds.width),
+                f64::from(holds.y) + 0.5 * f64::from(holds.height),
+            ),
+            window: holds,
+            holds,
+            confidence: 0.98,
+            moments: None,
+            cut: false,
+            split: false,
+        };
+        // Its upper part: centred 10 px from the remembered centre, but inside its box.
+        let upper = measured(PixelRect::new(box_of.x, box_of.y, 13, 18));
+        assert!(!t.markers[0].on_distractor(upper.center));
+        assert!(t.markers[0].on_look_alike(&upper));
+        // A marker passing over it makes a blob reaching out of the box: not the look-alike.
+        let passing = measured(PixelRect::new(box_of.x - 8, box_of.y, 20, 18));
+        assert!(!t.markers[0].on_look_alike(&passing));
+        // A marker-sized blob inside a much larger remembered box is not taken for a part.
+        let small = measured(PixelRect::new(box_of.x + 2, box_of.y + 2, 10, 10));
+        assert!(!t.markers[0].on_look_alike(&small));
         Ok(())
     }
 

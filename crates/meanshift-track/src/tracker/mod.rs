@@ -268,6 +268,9 @@ const COHERENCE_RATIO: f64 = 0.1;
 const DISTRACTOR_COST: f64 = 6.0;
 /// A candidate within this fraction of the window of a known look-alike is on it.
 const DISTRACTOR_RADIUS: f64 = 0.3;
+/// Least share of a remembered look-alike's box that a blob inside it must cover to be taken
+/// for a part of it.
+const LOOK_ALIKE_PART_SHARE: f64 = 0.5;
 /// Look-alikes remembered per marker (the oldest is forgotten first).
 const MAX_DISTRACTORS: usize = 32;
 /// Sightings counted per look-alike, at most.

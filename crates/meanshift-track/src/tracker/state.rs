@@ -118,7 +118,7 @@ impl MarkerState {
                     }
                     _ => 0.0,
                 };
-                let penalty = if self.on_distractor(measured.center) {
+                let penalty = if self.on_look_alike(&measured) {
                     DISTRACTOR_COST
                 } else {
                     0.0
@@ -186,6 +186,19 @@ impl MarkerState {
         self.distractors
             .iter()
             .any(|d| d.seen >= 2 && (d.at - at).norm() < (DISTRACTOR_RADIUS * side).max(2.0))
+    }
+
+    /// True when measurement `q` is a static look-alike of this marker: centred on one (see
+    /// [`MarkerState::on_distractor`]), or a part of one, its blob's box inside the
+    /// look-alike's and at least [`LOOK_ALIKE_PART_SHARE`] of it (a look-alike that a twig
+    /// cuts in two is seen as either part, each centred elsewhere).
+    pub(super) fn on_look_alike(&self, q: &Measured) -> bool {
+        self.on_distractor(q.center)
+            || self.distractors.iter().any(|d| {
+                d.seen >= 2
+                    && q.holds.intersect(&d.bounds) == q.holds
+                    && q.holds.area() as f64 >= LOOK_ALIKE_PART_SHARE * d.bounds.area() as f64
+            })
     }
 
     /// The places of this marker's static look-alikes more than half a window from `pred`:
