@@ -593,7 +593,10 @@ pub(super) fn taken(
 /// [`taken`] for a quick-pass measurement: two parts of one blob that the split gave to two
 /// markers (both [`Measured::split`]) are two markers' places when their centres are
 /// [`SPLIT_EXCLUSION_FRACTION`] of a window apart; a marker partly behind another of its
-/// look is that close to it while the two cross.
+/// look is that close to it while the two cross. Only between markers both reported found
+/// in the last frame and moving at most [`SPLIT_MAX_WINDOWS_PER_FRAME`]: a marker that was
+/// an estimate, or a fast pair, may be split the wrong way round (two markers pulled through
+/// each other from rest, or one marker's streak that both predictions fall on).
 pub(super) fn taken_part(
     markers: &[MarkerState],
     i: usize,
@@ -603,7 +606,13 @@ pub(super) fn taken_part(
 ) -> bool {
     let mine = window_px(&markers[i]);
     claimed.iter().any(|&(j, _, c)| {
-        let both_split = at.split && quick[j].is_some_and(|q| q.measured.split);
+        let both_split = at.split
+            && quick[j].is_some_and(|q| q.measured.split)
+            && [i, j].iter().all(|&k| {
+                let m = &markers[k];
+                m.last_status.found()
+                    && m.filter.velocity.norm() <= SPLIT_MAX_WINDOWS_PER_FRAME * window_px(m)
+            });
         let fraction = if both_split {
             SPLIT_EXCLUSION_FRACTION
         } else {

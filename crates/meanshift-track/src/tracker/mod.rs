@@ -108,6 +108,9 @@ const EXCLUSION_FRACTION: f64 = 0.75;
 /// window from it while they cross (crossing seeds, 4 December 2026), while the two halves
 /// of one marker's disc are about 0.42 of its width apart, under this.
 const SPLIT_EXCLUSION_FRACTION: f64 = 0.5;
+/// Fastest motion (windows per frame) at which [`SPLIT_EXCLUSION_FRACTION`] holds: a blob
+/// that two faster markers share may be one marker's streak, whose two halves are far apart.
+const SPLIT_MAX_WINDOWS_PER_FRAME: f64 = 1.0;
 /// The context template is this many times the window in each direction: the marker and
 /// half a window of its surroundings on every side.
 const CONTEXT_SCALE: i32 = 2;
