@@ -584,10 +584,21 @@ pub(super) fn taken(
     at: Point2<f64>,
     claimed: &[(usize, PixelRect, Point2<f64>)],
 ) -> bool {
-    let mine = window_px(&markers[i]);
-    claimed.iter().any(|&(j, _, c)| {
-        j != i && (c - at).norm() < EXCLUSION_FRACTION * 0.5 * (mine + window_px(&markers[j]))
-    })
+    claimed
+        .iter()
+        .any(|&(j, _, c)| j != i && closer_than(markers, i, j, c - at, EXCLUSION_FRACTION))
+}
+
+/// Whether two places of markers `i` and `j`, `apart`, are closer than `fraction` of their
+/// mean window size.
+fn closer_than(
+    markers: &[MarkerState],
+    i: usize,
+    j: usize,
+    apart: Vector2<f64>,
+    fraction: f64,
+) -> bool {
+    apart.norm() < fraction * 0.5 * (window_px(&markers[i]) + window_px(&markers[j]))
 }
 
 /// [`taken`] for a quick-pass measurement: two parts of one blob that the split gave to two
@@ -604,7 +615,6 @@ pub(super) fn taken_part(
     claimed: &[(usize, PixelRect, Point2<f64>)],
     quick: &[Option<Scored>],
 ) -> bool {
-    let mine = window_px(&markers[i]);
     claimed.iter().any(|&(j, _, c)| {
         let both_split = at.split
             && quick[j].is_some_and(|q| q.measured.split)
@@ -618,7 +628,7 @@ pub(super) fn taken_part(
         } else {
             EXCLUSION_FRACTION
         };
-        j != i && (c - at.center).norm() < fraction * 0.5 * (mine + window_px(&markers[j]))
+        j != i && closer_than(markers, i, j, c - at.center, fraction)
     })
 }
 

@@ -606,8 +606,8 @@ mod tests {
     #[test]
     fn a_part_of_a_remembered_look_alike_is_that_look_alike_wherever_it_is_centred() -> Result<()> {
         let (mut t, side, home) = setup()?;
-        // A look-alike 18 px wide whose box was seen twice where it is, centred at one end
-        // (a twig cut it, and its lower part was the blob then).
+        // A look-alike whose 14x30 px box was seen twice where it is, centred low in it (a
+        // twig cut it, and its lower part was the blob then).
         let box_of = PixelRect::new((home.x + 4.0 * side) as i32, (home.y + side) as i32, 14, 30);
         let seen_at = Point2::new(f64::from(box_of.x) + 7.0, f64::from(box_of.y) + 20.0);
         for frame in 0..2 {
