@@ -182,6 +182,11 @@ pub struct ColonizeConfig {
     /// pipe model stays pure). Default true; false leaves the smooth pipe-model radii and
     /// centred chains.
     pub cylinder_fits: bool,
+    /// In a one-sided view grown by colonization with its camera known
+    /// ([`Self::camera_m`]), continue a thick chain straight through a stretch the camera
+    /// could not see, where the camera saw through the chain's own surface (it was drawn
+    /// along what hides it) but not through the straight line. Default true.
+    pub hidden_wood: bool,
     /// Look for a ground plane under the tree (the lowest surface that spreads sideways,
     /// see [`crate::Ground`]) and set its points aside before growth. Default true; the
     /// plane and its points are reported in [`crate::Reconstruction::ground`].
@@ -223,6 +228,7 @@ impl Default for ColonizeConfig {
             centring: true,
             centre_forks: true,
             cylinder_fits: true,
+            hidden_wood: true,
             remove_ground: true,
             separate_leaves: false,
             smoothing_iterations: 3,

@@ -35,7 +35,11 @@
 //!      base and, by default, at every radius a circle fit measures along a branch (a
 //!      straight taper fitted per chain); stubs that do not reach beyond their parent's
 //!      surface, and twig ends more than 2 cm from every point, are removed unless a
-//!      point needs them;
+//!      point needs them; in a one-sided view whose camera is known
+//!      ([`ColonizeConfig::camera_m`], [`ColonizeConfig::hidden_wood`]), a thick chain
+//!      drawn along the branches that hid its wood (the camera saw through the chain's
+//!      own surface, but not through the straight line past them) is continued on that
+//!      line ([`GrowthReport::hidden_stretches`]);
 //!   6. in a full scan, each segment's cylinder fitted to its own points (least mean
 //!      distance, where they go round at least half of it; [`ColonizeConfig::cylinder_fits`]),
 //!      as TreeQSM fits its cylinders.
@@ -83,6 +87,7 @@ mod frame;
 mod geometry;
 mod ground;
 mod grow;
+mod hidden;
 mod levels;
 mod metrics;
 mod reconstruct;

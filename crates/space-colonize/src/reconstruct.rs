@@ -81,6 +81,10 @@ pub struct GrowthReport {
     /// Segments whose cylinder was fitted to their own points as the last stage
     /// ([`ColonizeConfig::cylinder_fits`]; 0 for one-sided views and when not asked for).
     pub fitted_segments: usize,
+    /// Stretches of thick chains continued straight through what the camera could not see
+    /// (one-sided views grown by colonization with the camera known,
+    /// [`ColonizeConfig::hidden_wood`]; see `hidden.rs`).
+    pub hidden_stretches: usize,
     /// With [`Growth::Auto`]: the "model near cloud" of the first space-colonization growth
     /// (before refinement, with pipe-model radii from the trunk radius: the share of its
     /// length within [`NEAR_CLOUD_M`] of a point beyond its surface, see [`crate::fidelity()`]);
@@ -301,6 +305,13 @@ pub fn reconstruct_with_progress(
         )
     };
     let (mut skeleton, mut fits_used) = radii(&graph)?;
+    // What the camera saw through, when it is known (see `crate::hidden`).
+    let hidden_space = if config.hidden_wood {
+        p.camera_m
+            .and_then(|c| crate::hidden::SeenSpace::new(&prep.pts, &prep.main, c, p.spacing_m))
+    } else {
+        None
+    };
     if one_sided_colonization {
         // Chains that looped across a half-seen thick branch: onto their chords.
         let r: Vec<f64> = skeleton.nodes().iter().map(|n| n.radius_m).collect();
@@ -379,6 +390,15 @@ pub fn reconstruct_with_progress(
         }
         (skeleton, fits_used) = radii(&graph)?;
     }
+    // Chains drawn along what hides them: through the hidden stretch instead.
+    let mut hidden_stretches = 0;
+    if one_sided_colonization && let Some(seen) = hidden_space.as_ref() {
+        let r: Vec<f64> = skeleton.nodes().iter().map(|n| n.radius_m).collect();
+        hidden_stretches = crate::hidden::continue_hidden(&mut graph, &r, seen, p.step_m);
+        if hidden_stretches > 0 {
+            (skeleton, fits_used) = radii(&graph)?;
+        }
+    }
     let mut far_tips = 0;
     let near_m = NEAR_CLOUD_M.max(FAR_TIP_SPACINGS * p.spacing_m);
     for _ in 0..FAR_TIP_ROUNDS {
@@ -427,6 +447,7 @@ pub fn reconstruct_with_progress(
             far_tips,
             radius_fits_used: fits_used,
             fitted_segments,
+            hidden_stretches,
             colonization_near_cloud,
         },
         skeleton,

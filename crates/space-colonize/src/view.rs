@@ -100,13 +100,37 @@ impl ViewConfig {
 }
 
 /// Pixel of a direction: azimuth and elevation in units of `pixel_rad`.
-fn pixel(d: &Vector3<f64>, pixel_rad: f64) -> (i64, i64) {
+pub(crate) fn pixel(d: &Vector3<f64>, pixel_rad: f64) -> (i64, i64) {
     let az = d.y.atan2(d.x);
     let el = d.z.atan2(d.x.hypot(d.y));
     (
         (az / pixel_rad).floor() as i64,
         (el / pixel_rad).floor() as i64,
     )
+}
+
+/// The z-buffer of `rays` (direction from the camera and range): per pixel of `pixel_rad`,
+/// the range of the nearest point, each point a disc of `splat_m` (at most
+/// [`MAX_SPLAT_PIXELS`] pixels in radius). Rays of zero range are skipped.
+pub(crate) fn splat_nearest(
+    rays: &[(Vector3<f64>, f64)],
+    pixel_rad: f64,
+    splat_m: f64,
+) -> HashMap<(i64, i64), f64> {
+    let mut nearest: HashMap<(i64, i64), f64> = HashMap::new();
+    for (d, r) in rays.iter().filter(|(_, r)| *r > 0.0) {
+        let (u, v) = pixel(d, pixel_rad);
+        let k = ((splat_m / (r * pixel_rad)).round() as i64).min(MAX_SPLAT_PIXELS);
+        for du in -k..=k {
+            for dv in -k..=k {
+                if du * du + dv * dv <= k * k {
+                    let e = nearest.entry((u + du, v + dv)).or_insert(f64::INFINITY);
+                    *e = e.min(*r);
+                }
+            }
+        }
+    }
+    nearest
 }
 
 /// The points a camera sees (see the module docs), each moved along its view ray by
@@ -126,19 +150,7 @@ pub fn camera_view(points: &[Point3<f64>], config: &ViewConfig) -> Result<Vec<Po
             (d, r)
         })
         .collect();
-    let mut nearest: HashMap<(i64, i64), f64> = HashMap::new();
-    for (d, r) in rays.iter().filter(|(_, r)| *r > 0.0) {
-        let (u, v) = pixel(d, config.pixel_rad);
-        let k = ((config.splat_m / (r * config.pixel_rad)).round() as i64).min(MAX_SPLAT_PIXELS);
-        for du in -k..=k {
-            for dv in -k..=k {
-                if du * du + dv * dv <= k * k {
-                    let e = nearest.entry((u + du, v + dv)).or_insert(f64::INFINITY);
-                    *e = e.min(*r);
-                }
-            }
-        }
-    }
+    let nearest = splat_nearest(&rays, config.pixel_rad, config.splat_m);
     let mut rng = SplitMix64::seed_from_u64(config.seed);
     let mut normal = || {
         let u1 = ((rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64).max(1e-300);
