@@ -117,9 +117,14 @@ struct Args {
     /// Where the cloud was seen from, for a one-sided view (a depth camera's position,
     /// metres, the cloud's frame: 0,0,0 for a cloud in the camera's own frame): branches
     /// under 1.5 cm are then measured across its rays too, where depth noise does not
-    /// widen them. `--view-from` sets it to the view's camera
+    /// widen them, and a thick branch drawn along what hid it from the camera is continued
+    /// straight through the hidden stretch (`"growth"` `"hidden_stretches"` counts them).
+    /// `--view-from` sets it to the view's camera
     #[arg(long = "camera-at", value_name = "X,Y,Z", value_parser = point3, allow_hyphen_values = true)]
     camera_at: Option<Point3<f64>>,
+    /// With the camera known, leave hidden stretches as grown (along what hid them)
+    #[arg(long = "no-hidden-wood")]
+    no_hidden_wood: bool,
 }
 
 /// An up axis by name.
@@ -240,6 +245,7 @@ fn run(
         separate_leaves: args.separate_leaves,
         centre_forks: !args.forks_as_grown,
         cylinder_fits: !args.no_cylinder_fits,
+        hidden_wood: !args.no_hidden_wood,
         camera_m,
         ..ColonizeConfig::default()
     };
