@@ -11,7 +11,9 @@ use std::collections::HashMap;
 
 use nalgebra::Vector3;
 
+use crate::error::Result;
 use crate::refine::Graph;
+use crate::skeleton::{Skeleton, SkeletonNode};
 use crate::view::{pixel, splat_nearest};
 
 /// A model surface point within this distance of the nearest surface the camera saw in
@@ -354,6 +356,42 @@ fn replace_with_line(
     }
 }
 
+/// Radii of a one-sided view where the camera saw a chain poorly: each node at least as
+/// thick as the child carrying the most length beyond it (a branch does not thicken as it
+/// goes out), but never thicker than the pipe model gives it from the trunk's base radius
+/// `base_m` and exponent `exponent`. A trunk hidden behind branches is measured there on
+/// the few points of what hid it (a third of its radius on the first set's seed 63), while
+/// the trunk above and below is measured well.
+pub(crate) fn no_thinner_than_its_continuation(
+    skeleton: &Skeleton,
+    base_m: f64,
+    exponent: f64,
+) -> Result<Skeleton> {
+    let w = skeleton.carried_length_m();
+    let pipe = crate::refine::pipe_radii(skeleton, base_m, exponent);
+    let mut r: Vec<f64> = skeleton.nodes().iter().map(|n| n.radius_m).collect();
+    for &v in skeleton.topological_order().iter().rev() {
+        let heavier = skeleton
+            .children(v)
+            .iter()
+            .copied()
+            .max_by(|&x, &y| w[x].total_cmp(&w[y]));
+        if let Some(h) = heavier {
+            r[v] = r[v].max(r[h].min(pipe[v]));
+        }
+    }
+    Skeleton::new(
+        skeleton
+            .nodes()
+            .iter()
+            .map(|n| SkeletonNode {
+                radius_m: r[n.id],
+                ..*n
+            })
+            .collect(),
+    )
+}
+
 /// Nodes from ancestor `a` down to `b`.
 fn chain_up(graph: &Graph, b: usize, a: usize) -> Vec<usize> {
     let mut chain = vec![b];
@@ -519,6 +557,40 @@ mod tests {
             &mut t,
         );
         t
+    }
+
+    #[test]
+    fn a_chain_is_no_thinner_than_its_continuation_up_to_the_pipe_model() {
+        // A 1 m trunk (radius 6 cm at the base by the pipe model, nodes every 10 cm)
+        // measured 1 cm thick in its middle, 4 cm elsewhere, with a 3 cm twig off its
+        // middle (a light child).
+        let mut nodes: Vec<SkeletonNode> = (0..=10)
+            .map(|k| SkeletonNode {
+                id: k,
+                parent: k.checked_sub(1),
+                position: nalgebra::Point3::new(0.0, 0.0, 0.1 * k as f64),
+                radius_m: if (4..=6).contains(&k) { 0.01 } else { 0.04 },
+            })
+            .collect();
+        nodes.push(SkeletonNode {
+            id: 11,
+            parent: Some(5),
+            position: nalgebra::Point3::new(0.05, 0.0, 0.5),
+            radius_m: 0.03,
+        });
+        let s = Skeleton::new(nodes).unwrap_or_else(|e| panic!("{e}"));
+        let out = no_thinner_than_its_continuation(&s, 0.06, 2.5).unwrap_or_else(|e| panic!("{e}"));
+        let r = |k: usize| out.nodes()[k].radius_m;
+        for k in 4..=6 {
+            assert!((r(k) - 0.04).abs() < 1e-12, "{k}: {}", r(k));
+        }
+        // The twig keeps its radius, and the thin top keeps its own.
+        assert_eq!(r(11), 0.03);
+        assert_eq!(r(10), 0.04);
+        // Under the pipe model's radius: a trunk whose base is 1 cm carries at most that.
+        let thin_base =
+            no_thinner_than_its_continuation(&s, 0.01, 2.5).unwrap_or_else(|e| panic!("{e}"));
+        assert!(thin_base.nodes()[5].radius_m <= 0.01 + 1e-12);
     }
 
     #[test]

@@ -33,7 +33,9 @@
 //!      points still more than 2 cm off the model;
 //!   5. radii: the pipe model r_parent^e = Σ r_child^e (e = 2.5) anchored at the fitted trunk
 //!      base and, by default, at every radius a circle fit measures along a branch (a
-//!      straight taper fitted per chain); stubs that do not reach beyond their parent's
+//!      straight taper fitted per chain; in a one-sided view no node thinner than the
+//!      child carrying the most beyond it, up to the pipe model: a stretch the camera
+//!      hardly saw is otherwise measured on what hid it); stubs that do not reach beyond their parent's
 //!      surface, and twig ends more than 2 cm from every point, are removed unless a
 //!      point needs them; in a one-sided view whose camera is known
 //!      ([`ColonizeConfig::camera_m`], [`ColonizeConfig::hidden_wood`]), a thick chain

@@ -297,12 +297,19 @@ pub fn reconstruct_with_progress(
         let fits = config
             .radius_fits
             .then(|| graph.fit_radii(&prep.pts, &prep.main, &p));
-        graph.to_skeleton(
+        let (s, used) = graph.to_skeleton(
             p.pipe_exponent,
             p.trunk_radius_m,
             fits.as_deref(),
             near_forks.then_some(crate::refine::MAX_FIT_PER_PIPE_MEDIAN),
-        )
+        )?;
+        // A one-sided view's chain measured thin where the camera hardly saw it.
+        let s = if p.one_sided {
+            crate::hidden::no_thinner_than_its_continuation(&s, p.trunk_radius_m, p.pipe_exponent)?
+        } else {
+            s
+        };
+        Ok((s, used))
     };
     let (mut skeleton, mut fits_used) = radii(&graph)?;
     // What the camera saw through, when it is known (see `crate::hidden`).

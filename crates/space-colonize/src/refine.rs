@@ -685,17 +685,7 @@ impl Graph {
                 })
                 .collect(),
         )?;
-        let w = flat.carried_length_m();
-        let root = flat.root();
-        let scale = if w[root] > 0.0 {
-            base_radius_m.powf(exponent) / w[root]
-        } else {
-            0.0
-        };
-        let pipe: Vec<f64> = w
-            .iter()
-            .map(|&w| (scale * w).powf(1.0 / exponent))
-            .collect();
+        let pipe = pipe_radii(&flat, base_radius_m, exponent);
         let mut radius = pipe.clone();
         // The median ratio of fitted radii to the pipe model's.
         let median = fits.and_then(|f| {
@@ -735,6 +725,21 @@ impl Graph {
         )?;
         Ok((skeleton, used))
     }
+}
+
+/// The pipe model's radius of each node of `skeleton` (its radii unused): r^e proportional
+/// to the length the node carries, `base_m` at the root.
+pub(crate) fn pipe_radii(skeleton: &Skeleton, base_m: f64, exponent: f64) -> Vec<f64> {
+    let w = skeleton.carried_length_m();
+    let root = skeleton.root();
+    let scale = if w[root] > 0.0 {
+        base_m.powf(exponent) / w[root]
+    } else {
+        0.0
+    };
+    w.iter()
+        .map(|&w| (scale * w).powf(1.0 / exponent))
+        .collect()
 }
 
 /// Line r = a + b·s through (s, r) samples, refitted without outliers, b ≤ 0.

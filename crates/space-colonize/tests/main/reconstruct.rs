@@ -658,36 +658,49 @@ fn a_known_camera_makes_the_cloud_a_one_sided_view() {
     );
 }
 
-/// A trunk hidden behind branches in front of it (the `one_sided_views` example's first
-/// set, seed 64, camera at 2.4 rad: a tuning view) is continued through the hidden stretch
-/// with the camera's rays as evidence, instead of along what hides it.
-#[test]
-fn a_trunk_hidden_behind_branches_is_continued_through_them() {
-    use space_colonize::{ViewConfig, camera_view, fidelity};
+/// A tree of the `one_sided_views` example's sets (seed, trunk radius, height, points, 1 or
+/// 2 mm of noise) seen by a Kinect 2.5 m from the trunk at `azimuth_rad`, 0.45 of its height
+/// up: the truth, the camera and the view.
+fn one_sided_view(
+    (seed, noise_m, base_radius_m, height_m, points): (u64, f64, f64, f64, usize),
+    azimuth_rad: f64,
+) -> (
+    space_colonize::synthetic::SyntheticTree,
+    Point3<f64>,
+    Vec<Point3<f64>>,
+) {
+    use space_colonize::{ViewConfig, camera_view};
     let truth = SyntheticConfig {
-        seed: 64,
-        noise_m: 0.001,
-        base_radius_m: 0.04,
-        height_m: 3.5,
-        points: 20_000,
+        seed,
+        noise_m,
+        base_radius_m,
+        height_m,
+        points,
         ..Default::default()
     }
     .generate()
     .unwrap();
     let root = truth.skeleton.nodes()[truth.skeleton.root()].position;
     let camera = Point3::new(
-        root.x + 2.5 * 2.4_f64.cos(),
-        root.y + 2.5 * 2.4_f64.sin(),
-        root.z + 0.45 * 3.5,
+        root.x + 2.5 * azimuth_rad.cos(),
+        root.y + 2.5 * azimuth_rad.sin(),
+        root.z + 0.45 * height_m,
     );
-    let seen = camera_view(
-        &truth.points,
-        &ViewConfig {
-            seed: 64,
-            ..ViewConfig::kinect(camera)
-        },
-    )
-    .unwrap();
+    let view = ViewConfig {
+        seed,
+        ..ViewConfig::kinect(camera)
+    };
+    let seen = camera_view(&truth.points, &view).unwrap();
+    (truth, camera, seen)
+}
+
+/// A trunk hidden behind branches in front of it (the `one_sided_views` example's first
+/// set, seed 64, camera at 2.4 rad: a tuning view) is continued through the hidden stretch
+/// with the camera's rays as evidence, instead of along what hides it.
+#[test]
+fn a_trunk_hidden_behind_branches_is_continued_through_them() {
+    use space_colonize::fidelity;
+    let (truth, camera, seen) = one_sided_view((64, 0.001, 0.04, 3.5, 20_000), 2.4);
     let rebuild = |hidden_wood| {
         reconstruct(
             &seen,
@@ -720,6 +733,29 @@ fn a_trunk_hidden_behind_branches_is_continued_through_them() {
     // Without a camera there is no evidence to go on.
     let blind = reconstruct(&seen, &ColonizeConfig::default()).unwrap();
     assert_eq!(blind.growth.hidden_stretches, 0);
+}
+
+/// A trunk stretch the camera hardly saw (the example's second set, seed 63, camera at
+/// 4.5 rad: a tuning view) is measured on the few points of what hid it; it is held as thick
+/// as the trunk above it, up to the pipe model (before: 85.2 % of the whole cloud within
+/// 2 cm and 0.82 of the true volume).
+#[test]
+fn a_hardly_seen_trunk_stretch_is_as_thick_as_the_trunk_above_it() {
+    use space_colonize::fidelity;
+    let (truth, camera, seen) = one_sided_view((63, 0.001, 0.07, 4.0, 30_000), 4.5);
+    let model = reconstruct(
+        &seen,
+        &ColonizeConfig {
+            camera_m: Some(camera),
+            ..ColonizeConfig::default()
+        },
+    )
+    .unwrap();
+    let f = fidelity(&truth.points, &model.skeleton);
+    let e = skeleton_error(&model.skeleton, &truth.skeleton);
+    // Now 96.5 % and 1.04.
+    assert!(f.within_2cm > 0.95, "{f:?}");
+    assert!((e.volume_ratio - 1.0).abs() < 0.1, "{e:?}");
 }
 
 #[test]
