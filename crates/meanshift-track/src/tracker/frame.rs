@@ -414,6 +414,9 @@ impl Tracker {
                         // Followed, but not a place to stand behind (too unlike the marker,
                         // or a blob the quick pass's region cut): reported as an estimate.
                         o.status = TrackStatus::Predicted;
+                        m.weak_run += 1;
+                    } else {
+                        m.weak_run = 0;
                     }
                     m.learn_appearance(q.confidence, context);
                     if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
@@ -577,6 +580,7 @@ mod tests {
             q.center = b;
             Some((q, TrackStatus::Tracked, None))
         };
+        let normal_gate = t.gate(0).radius_px;
         for (dx, confidence) in [
             (0.3 * side, TRUSTED_CONFIDENCE - 0.05),
             (0.6 * side, TRUSTED_CONFIDENCE),
@@ -586,6 +590,15 @@ mod tests {
                 b_found(0.9),
             ];
             t.record(&frame, None, results, &[false, false]);
+            // After the weak one the search widens as after a miss (the place followed may
+            // be a still look-alike while the marker swings on); the trusted one ends that.
+            let gate = t.gate(0).radius_px;
+            if confidence < TRUSTED_CONFIDENCE {
+                assert_eq!(t.markers[0].searching(), 1);
+                assert!(gate > 1.2 * normal_gate, "{gate} {normal_gate}");
+            } else {
+                assert_eq!(t.markers[0].searching(), 0);
+            }
         }
         let obs = &t.tracks[0].observations;
         let (weak, trusted) = (obs[obs.len() - 2], obs[obs.len() - 1]);

@@ -423,6 +423,9 @@ struct MarkerState {
     depth_m: Option<f64>,
     /// Frames since the last measurement.
     misses: usize,
+    /// Frames in a row followed on a measurement too weak to report as found (under
+    /// [`TRUSTED_CONFIDENCE`], or cut): the search widens over them as over misses.
+    weak_run: usize,
     last_status: TrackStatus,
     /// The surroundings, with [`TrackerConfig::context_check`].
     context: Option<Template>,

@@ -19,7 +19,7 @@ impl Tracker {
         let m = &self.markers[i];
         let pred = predictions[i];
         let side = window_px(m);
-        let wide = m.gate_var + manoeuvre_var(&self.config, side, m.misses, frame_side);
+        let wide = m.gate_var + manoeuvre_var(&self.config, side, m.searching(), frame_side);
         let mut found: Vec<Measured>;
         let mut fallback = None;
         if let (Some(t), true) = (&m.template, self.config.recovery) {
@@ -275,7 +275,7 @@ impl Tracker {
     /// Marker `i`'s search gate this frame: the miss may be a manoeuvre (a release), so the
     /// search opens to the search radius, and wider while the marker stays unseen, up to the
     /// whole frame. The filter takes the manoeuvre only if a candidate is taken.
-    fn gate(&self, i: usize) -> Gate {
+    pub(super) fn gate(&self, i: usize) -> Gate {
         let m = &self.markers[i];
         self.gate_of(m, &m.filter, m.gate_var)
     }
@@ -286,7 +286,7 @@ impl Tracker {
         let (width, height) = (self.width, self.height);
         let frame_side = f64::from(width.max(height));
         let side = window_px(m);
-        let wide_var = gate_var + manoeuvre_var(&self.config, side, m.misses, frame_side);
+        let wide_var = gate_var + manoeuvre_var(&self.config, side, m.searching(), frame_side);
         let center = clamp_into(filter.position, width, height);
         // A marker that has left the frame comes back across the border near where it
         // left: its gate is the normal one around the border point, widened by a window
@@ -692,7 +692,7 @@ fn detection_region(m: &MarkerState, gate: &Gate) -> PixelRect {
 }
 
 /// A marker's search gate in one frame.
-struct Gate {
+pub(super) struct Gate {
     /// Variance of the opened gate (the normal gate's plus the manoeuvre's), pixels².
     wide_var: f64,
     /// The prediction, clamped into the frame.
@@ -700,7 +700,7 @@ struct Gate {
     /// Whether the marker is predicted out of the frame after leaving it near a border.
     outside: bool,
     /// Search radius, pixels.
-    radius_px: f64,
+    pub(super) radius_px: f64,
 }
 
 #[cfg(test)]

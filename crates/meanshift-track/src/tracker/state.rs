@@ -33,6 +33,7 @@ impl MarkerState {
             },
             depth_m: None,
             misses: 0,
+            weak_run: 0,
             last_status: TrackStatus::Tracked,
             context: None,
             context_level: 1.0,
@@ -178,6 +179,13 @@ impl MarkerState {
             self.context_level += APPEARANCE_RATE * d;
             self.context_var += APPEARANCE_RATE * (d * d - self.context_var);
         }
+    }
+
+    /// Frames the search has gone on: misses, or frames followed only on weak measurements
+    /// (a still look-alike taken at a release's turn kept the gate at its normal size for
+    /// seven frames while the marker swung 150 px away).
+    pub(super) fn searching(&self) -> usize {
+        self.misses.max(self.weak_run)
     }
 
     /// True when `at` is on a static look-alike of this marker.
