@@ -492,10 +492,13 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     // The stay began where the track came to this place: possibly before these frames, when
     // the first of a still stretch jittered by more than `PARKED_PX` (a look-alike measured
     // through noise and JPEG artefacts).
+    // A frame or two measured off the place in the middle of a stay (a piece of something
+    // else taken by detection, then the look-alike again) do not end it.
     let stay_px = PARKED_STAY_WINDOWS * side;
+    let away = |k: usize| obs[k].center.is_none_or(|c| (c - at).norm() > stay_px);
     let entered = (obs.len().saturating_sub(PARKED_LOOKBACK_FRAMES).max(1)..obs.len())
         .rev()
-        .find(|&k| obs[k - 1].center.is_none_or(|c| (c - at).norm() > stay_px));
+        .find(|&k| (k.saturating_sub(PARKED_EXCURSION_FRAMES + 1)..k).all(away));
     let thrown_before = entered.filter(|&k| k < start && thrown(k));
     let jumped_in = thrown_before.is_some() || (start.max(1)..obs.len()).any(thrown);
     // Near its home a marker may be held still (a child carried by its parent's pull), but
@@ -791,6 +794,44 @@ mod tests {
         t.learn_parked();
         assert!(!t.markers[0].on_distractor(there));
         assert!(all_tracked(&t, 0));
+        Ok(())
+    }
+
+    #[test]
+    fn a_frame_measured_off_a_stay_does_not_hide_the_throw_that_began_it() -> Result<()> {
+        // Thrown there by detection, three frames there, `away` frames a window off it (a
+        // piece of something else), then the look-alike again for `PARKED_FRAMES` frames.
+        let stay = |away: usize| -> Result<(Tracker, usize, Point2<f64>)> {
+            let (mut t, side, home) = setup()?;
+            let there = Point2::new(home.x + 5.0 * side, home.y + 2.0);
+            park(&mut t, home, 3);
+            let thrown_at = t.tracks[0].observations.len();
+            park(&mut t, there, 3);
+            park(&mut t, Point2::new(there.x + side, there.y), away);
+            park(&mut t, there, PARKED_FRAMES);
+            t.tracks[0].observations[thrown_at].status = TrackStatus::Recovered;
+            t.learn_parked();
+            Ok((t, thrown_at, there))
+        };
+        let (t, thrown_at, there) = stay(1)?;
+        assert!(t.markers[0].on_distractor(there));
+        let obs = &t.tracks[0].observations;
+        assert!(
+            obs[thrown_at..]
+                .iter()
+                .all(|o| o.status == TrackStatus::Predicted)
+        );
+        assert_eq!(obs[thrown_at - 1].status, TrackStatus::Tracked);
+        // Away for longer: the track left and came back by the quick pass, a new stay.
+        let (t, _, there) = stay(PARKED_EXCURSION_FRAMES + 1)?;
+        assert!(!t.markers[0].on_distractor(there));
+        assert_eq!(t.markers[0].misses, 0);
+        assert!(
+            t.tracks[0]
+                .observations
+                .iter()
+                .all(|o| o.status != TrackStatus::Predicted)
+        );
         Ok(())
     }
 

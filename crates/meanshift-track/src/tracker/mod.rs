@@ -303,6 +303,9 @@ const PARKED_LOOKBACK_FRAMES: usize = 4 * PARKED_FRAMES;
 /// Distance (windows) from a parked track's place within which its earlier centres count as
 /// the same stay (a look-alike's measured centre jitters by a few pixels).
 const PARKED_STAY_WINDOWS: f64 = 0.5;
+/// Frames off the place, at most, inside one stay there (a detection on a piece of
+/// something else for a frame, then the look-alike again).
+const PARKED_EXCURSION_FRAMES: usize = 1;
 /// Largest distance (pixels) of each of those centres from their mean for the track to
 /// stand still (a parked window jitters by a pixel with noise and JPEG artefacts).
 const PARKED_PX: f64 = 2.0;
