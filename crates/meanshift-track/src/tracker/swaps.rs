@@ -22,6 +22,9 @@
 //! went with `B`'s marker while `B`'s track stayed behind (half hidden, or on a look-alike).
 //! When `A`'s recent track runs along `B`'s line, moving, far from its own line, and `B`'s
 //! track is elsewhere, the two are exchanged the same way: `B` is where `A`'s track is.
+//! "Far from its own line" also holds for a track that moves across its own line and along
+//! `B`'s ([`crosswise`]) while `B`'s track follows nothing (a line learnt over a pull and a
+//! swing can be wide enough to hold such a track within its spreads).
 //!
 //! Before any swing line is known (two markers of one look that pass through each other
 //! during the pull, speeding up, where a constant-velocity prediction lags most), a swap
@@ -64,6 +67,10 @@ pub(super) const STOLEN_OWN_OFFSET: f64 = 4.0;
 /// still look-alike on that line is not the other marker).
 const STOLEN_MIN_TRAVEL_WINDOWS: f64 = 0.5;
 
+/// ... or, wherever it lies, moves across its own line and along the other's by at least
+/// this ratio (see [`crosswise`]; 2 is 63° off a line).
+const STOLEN_CROSS_RATIO: f64 = 2.0;
+
 /// Two markers overlap (a crossing, where one can be taken for the other) when their
 /// centres are within this many windows: closer than [`TOGETHER_WINDOWS`], so that markers
 /// at rest a window and a half apart are not always together.
@@ -91,6 +98,25 @@ fn refines(signature: &SwingLine, line: &SwingLine) -> bool {
     signature.normal.dot(&line.normal).abs() >= SIGNATURE_AGREE
         && line.sigma_px <= SIGNATURE_MAX_GROWTH * signature.sigma_px
         && signature.offset(line.centre) <= 1.0
+}
+
+/// Whether a track's recent steps `p` run across its own swing line `own` and along
+/// another's, `other`: summed over the steps, the motion across `own` is at least
+/// [`STOLEN_CROSS_RATIO`] times the motion along it, and the motion along `other` at least
+/// that many times the motion across it. A marker swings along its line, an ellipse at
+/// most a third as wide as it is long; a track that moves across its own line and along
+/// another marker's follows that marker, however wide its own line's spread (a line learnt
+/// over a pull and a swing can be wide enough to hold such a track within its spreads).
+fn crosswise(p: &[Point2<f64>], own: SwingLine, other: SwingLine) -> bool {
+    let (mut along_own, mut across_own, mut along_other, mut across_other) = (0.0, 0.0, 0.0, 0.0);
+    for w in p.windows(2) {
+        let d = w[1] - w[0];
+        along_own += d.perp(&own.normal).abs();
+        across_own += d.dot(&own.normal).abs();
+        along_other += d.perp(&other.normal).abs();
+        across_other += d.dot(&other.normal).abs();
+    }
+    across_own >= STOLEN_CROSS_RATIO * along_own && along_other >= STOLEN_CROSS_RATIO * across_other
 }
 
 impl Tracker {
@@ -187,8 +213,23 @@ impl Tracker {
             .last()
             .and_then(|o| o.center)
             .is_none_or(|c| (c - last).norm() > window);
+        // Moving across its own line counts only while the other's track is not
+        // following a marker: found on its likeness (at least as alike as that marker
+        // usually is) and moving as far as this track must. With both following, two
+        // tracks each along a line are a swap or nothing (an elliptic swing seen at its
+        // turn moves across its line for a while); a track left behind on a stem or a
+        // look-alike, half hidden, stands still or finds nothing.
+        let obs = &self.tracks[j].observations;
+        let mut other_found = obs[obs.len().saturating_sub(SWAP_FRAMES)..]
+            .iter()
+            .filter(|o| o.status.found() && self.markers[j].typical(o.confidence))
+            .filter_map(|o| o.center);
+        let other_following = match (other_found.next(), other_found.next_back()) {
+            (Some(a), Some(b)) => (b - a).norm() >= STOLEN_MIN_TRAVEL_WINDOWS * window,
+            _ => false,
+        };
         mean(&sj) <= SWAP_MAX_OFFSET
-            && mean(&si) >= STOLEN_OWN_OFFSET
+            && (mean(&si) >= STOLEN_OWN_OFFSET || (!other_following && crosswise(pi, si, sj)))
             && (last - first).norm() >= STOLEN_MIN_TRAVEL_WINDOWS * window
             && apart
     }
@@ -485,6 +526,74 @@ mod tests {
         );
         // Without motion along B's line (a still look-alike there), nothing changes.
         let (t, before) = run_taken(false)?;
+        let after: Vec<_> = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        assert_eq!(after, before);
+        Ok(())
+    }
+
+    /// As [`run_taken`], with A known by a wide line that reaches over B's (a line learnt
+    /// over a pull and a swing), and A's track moving down B's line by 3 px a frame while
+    /// drifting `drift_px` a frame along its own; B's track coasting on a weak measurement
+    /// (half hidden), or found (`b_found`) standing still or running up its own line
+    /// (`b_moving`).
+    fn run_taken_within_own_spread(
+        drift_px: f64,
+        b_found: bool,
+        b_moving: bool,
+    ) -> Result<(Tracker, Vec<Option<Point2<f64>>>)> {
+        let mut t = tracker()?;
+        t.markers[0].signature = Some(SwingLine {
+            centre: Point2::new(80.0, 30.0),
+            normal: Vector2::new(0.0, 1.0),
+            sigma_px: 8.0,
+            half_length_px: 30.0,
+        });
+        for _ in 0..3 {
+            push(&mut t, Point2::new(78.0, 30.0), Point2::new(84.0, 30.0));
+        }
+        for k in 0..8 {
+            let k = f64::from(k);
+            // B's track stands still (left behind) or runs up its own line by 2 px a frame.
+            let b_y = if b_moving { -2.0 * k } else { 0.0 };
+            push(
+                &mut t,
+                Point2::new(96.0 + drift_px * k, 20.0 + 3.0 * k),
+                Point2::new(100.0, b_y),
+            );
+        }
+        if !b_found {
+            for o in t.tracks[1].observations.iter_mut().skip(4) {
+                o.status = TrackStatus::Predicted;
+                o.confidence = 0.4;
+            }
+        }
+        Ok(repaired(t))
+    }
+
+    #[test]
+    fn a_track_moving_across_its_own_line_and_along_the_others_is_given_to_it() -> Result<()> {
+        // Every place of A's track lies within two spreads of A's wide line, but it moves
+        // straight across that line, along B's, while B's track finds nothing: B's marker.
+        let (t, before) = run_taken_within_own_spread(0.0, false, false)?;
+        let b = &t.tracks[1].observations;
+        for (f, o) in b.iter().enumerate().skip(4) {
+            assert_eq!(o.center, before[f], "frame {f}");
+        }
+        // Moving 30° off B's line (as far along A's own line as 1.7 across it): A's own
+        // swing seen at a slant, not taken for B's.
+        let (t, before) =
+            run_taken_within_own_spread(3.0 * 30_f64.to_radians().tan(), false, false)?;
+        let after: Vec<_> = t.tracks[0].observations.iter().map(|o| o.center).collect();
+        assert_eq!(after, before);
+        // B's track found, but standing still (on a stem, its marker half hidden): the same.
+        let (t, before) = run_taken_within_own_spread(0.0, true, false)?;
+        let b = &t.tracks[1].observations;
+        for (f, o) in b.iter().enumerate().skip(4) {
+            assert_eq!(o.center, before[f], "frame {f}");
+        }
+        // B's track following a marker along its line: A at the turn of an elliptic swing,
+        // left alone.
+        let (t, before) = run_taken_within_own_spread(0.0, true, true)?;
         let after: Vec<_> = t.tracks[0].observations.iter().map(|o| o.center).collect();
         assert_eq!(after, before);
         Ok(())
