@@ -492,8 +492,9 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     // The stay began where the track came to this place: possibly before these frames, when
     // the first of a still stretch jittered by more than `PARKED_PX` (a look-alike measured
     // through noise and JPEG artefacts).
-    // A frame or two measured off the place in the middle of a stay (a piece of something
-    // else taken by detection, then the look-alike again) do not end it.
+    // Up to `PARKED_EXCURSION_FRAMES` frames measured off the place in the middle of a stay
+    // (a piece of something else taken by detection, then the look-alike again) do not end
+    // it.
     let stay_px = PARKED_STAY_WINDOWS * side;
     let away = |k: usize| obs[k].center.is_none_or(|c| (c - at).norm() > stay_px);
     let entered = (obs.len().saturating_sub(PARKED_LOOKBACK_FRAMES).max(1)..obs.len())
@@ -553,6 +554,18 @@ mod tests {
                 });
             }
         }
+    }
+
+    /// A's observations from `thrown_at` on were revised to `predicted`, the one before
+    /// it was not.
+    fn assert_revised_from(t: &Tracker, thrown_at: usize) {
+        let obs = &t.tracks[0].observations;
+        assert!(
+            obs[thrown_at..]
+                .iter()
+                .all(|o| o.status == TrackStatus::Predicted)
+        );
+        assert_eq!(obs[thrown_at - 1].status, TrackStatus::Tracked);
     }
 
     /// True when every observation of track `k` after the first frame is `tracked`.
@@ -779,13 +792,7 @@ mod tests {
         t.learn_parked();
         assert!(t.markers[0].on_distractor(there));
         // Every frame since the throw was the look-alike's, not only the last eight.
-        let obs = &t.tracks[0].observations;
-        assert!(
-            obs[thrown_at..]
-                .iter()
-                .all(|o| o.status == TrackStatus::Predicted)
-        );
-        assert_eq!(obs[thrown_at - 1].status, TrackStatus::Tracked);
+        assert_revised_from(&t, thrown_at);
         // The same stay reached by the quick pass (no throw) is a pull held there.
         let (mut t, _, _) = setup()?;
         park(&mut t, home, 3);
@@ -815,13 +822,7 @@ mod tests {
         };
         let (t, thrown_at, there) = stay(1)?;
         assert!(t.markers[0].on_distractor(there));
-        let obs = &t.tracks[0].observations;
-        assert!(
-            obs[thrown_at..]
-                .iter()
-                .all(|o| o.status == TrackStatus::Predicted)
-        );
-        assert_eq!(obs[thrown_at - 1].status, TrackStatus::Tracked);
+        assert_revised_from(&t, thrown_at);
         // Away for longer: the track left and came back by the quick pass, a new stay.
         let (t, _, there) = stay(PARKED_EXCURSION_FRAMES + 1)?;
         assert!(!t.markers[0].on_distractor(there));
