@@ -359,7 +359,17 @@ impl MarkerState {
         self.last_center = q.center;
         self.misses = 0;
         self.last_status = status;
-        self.swing.record(frame, q.center);
+        // A place detection (or a weak measurement) put far off the line the marker swings
+        // along is not learnt as part of its swing: were it a look-alike, the line it would
+        // bend or erase is what tells the marker's own place from it next frame.
+        let off_line = status != TrackStatus::Tracked
+            && self
+                .swing
+                .line()
+                .is_some_and(|l| l.offset(q.center) > RECORD_MAX_LINE_OFFSET);
+        if !off_line {
+            self.swing.record(frame, q.center);
+        }
         Observation {
             center: Some(q.center),
             window: q.window,
@@ -529,6 +539,43 @@ mod tests {
         m.filter.position = off;
         m.filter = m.held_in_frame(m.filter, size);
         assert_eq!(m.filter.position, off);
+        Ok(())
+    }
+
+    #[test]
+    fn a_place_taken_far_off_the_swing_line_is_not_learnt_as_the_swing() -> Result<()> {
+        let mut t = two_red_markers()?;
+        let config = t.config.clone();
+        let m = &mut t.markers[0];
+        let home = m.home;
+        let at = |x: f64, y: f64| {
+            let c = Point2::new(home.x + x, home.y + y);
+            Measured {
+                center: c,
+                window: PixelRect::centered_at(c, 11, 11),
+                holds: PixelRect::centered_at(c, 11, 11),
+                confidence: 0.9,
+                moments: None,
+                cut: false,
+                split: false,
+            }
+        };
+        // Followed by the quick pass through a swing of ±20 px along x.
+        for f in 1..=20u64 {
+            let x = 20.0 * (0.6 * f as f64).sin();
+            m.found(at(x, 0.0), TrackStatus::Tracked, &config, None, f);
+        }
+        let line = m.swing.line().expect("a swing along x has a line");
+        // Detection takes it 40 px across the line (8 spreads): not part of the swing.
+        m.found(at(0.0, 40.0), TrackStatus::Recovered, &config, None, 21);
+        assert_eq!(m.swing.line(), Some(line));
+        // Detection takes it back onto the line: recorded.
+        m.found(at(5.0, 0.0), TrackStatus::Recovered, &config, None, 22);
+        let refit = m.swing.line().expect("still a line");
+        assert_ne!(refit, line);
+        // The quick pass follows it across the line: that is where it is, recorded.
+        m.found(at(0.0, 40.0), TrackStatus::Tracked, &config, None, 23);
+        assert_ne!(m.swing.line(), Some(refit));
         Ok(())
     }
 }
