@@ -213,9 +213,10 @@ const CROWD_WINDOWS: f64 = 3.0;
 /// goes to detection (a same-look marker crossing its path took the window).
 const LINE_ACCEPT_SPREADS: f64 = 3.0;
 
-/// A place detection took a marker to (or a weak measurement) further than this many
-/// spreads from its swing line is not recorded in its swing (see `MarkerState::found`).
-const RECORD_MAX_LINE_OFFSET: f64 = 4.0;
+/// Spreads from a marker's swing line beyond which a place is far off it: a place detection
+/// took the marker to (or a weak measurement) there is not recorded in its swing (see
+/// `MarkerState::found`).
+const FAR_OFF_LINE_SPREADS: f64 = 4.0;
 
 /// Largest cost of a candidate off the marker's swing line (nats; 4 is an offset of about
 /// 2.8 spreads).

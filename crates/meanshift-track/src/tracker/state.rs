@@ -143,6 +143,14 @@ impl MarkerState {
             .collect()
     }
 
+    /// Whether `p` lies more than [`FAR_OFF_LINE_SPREADS`] from the marker's swing line (never
+    /// without a line).
+    pub(super) fn far_off_line(&self, p: Point2<f64>) -> bool {
+        self.swing
+            .line()
+            .is_some_and(|l| l.offset(p) > FAR_OFF_LINE_SPREADS)
+    }
+
     /// Whether a confidence is within what this marker usually shows (a blurred or paler
     /// marker may be less alike, so the check is loose: [`TYPICAL_SIGMAS`] spreads). A
     /// measurement that is not goes to detection, where it competes with other candidates.
@@ -362,11 +370,7 @@ impl MarkerState {
         // A place detection (or a weak measurement) put far off the line the marker swings
         // along is not learnt as part of its swing: were it a look-alike, the line it would
         // bend or erase is what tells the marker's own place from it next frame.
-        let off_line = status != TrackStatus::Tracked
-            && self
-                .swing
-                .line()
-                .is_some_and(|l| l.offset(q.center) > RECORD_MAX_LINE_OFFSET);
+        let off_line = status != TrackStatus::Tracked && self.far_off_line(q.center);
         if !off_line {
             self.swing.record(frame, q.center);
         }
