@@ -874,6 +874,20 @@ impl Tracker {
     }
 }
 
+/// A measurement for unit tests: an 11x11 window and blob at `center`, confidence 0.9.
+#[cfg(test)]
+fn measured_at_point(center: Point2<f64>) -> Measured {
+    Measured {
+        center,
+        window: PixelRect::centered_at(center, 11, 11),
+        holds: PixelRect::centered_at(center, 11, 11),
+        confidence: 0.9,
+        moments: None,
+        cut: false,
+        split: false,
+    }
+}
+
 /// A tracker for unit tests: markers A and B of one red colour, 130 px apart on a gray
 /// 192x64 frame.
 #[cfg(test)]

@@ -706,7 +706,7 @@ pub(super) struct Gate {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tracker::two_red_markers;
+    use crate::tracker::{measured_at_point, two_red_markers};
 
     #[test]
     fn a_streak_the_quick_region_cuts_is_followed_but_reported_as_an_estimate() -> Result<()> {
@@ -778,15 +778,7 @@ mod tests {
         let config = t.config.clone();
         let m = &mut t.markers[0];
         let home = m.home;
-        let at = |x: f64| Measured {
-            center: Point2::new(home.x + x, home.y),
-            window: PixelRect::centered_at(Point2::new(home.x + x, home.y), 11, 11),
-            holds: PixelRect::centered_at(Point2::new(home.x + x, home.y), 11, 11),
-            confidence: 0.9,
-            moments: None,
-            cut: false,
-            split: false,
-        };
+        let at = |x: f64| measured_at_point(Point2::new(home.x + x, home.y));
         // Taken by detection 90 px away (it may be a look-alike): the reach stays.
         m.found(at(90.0), TrackStatus::Recovered, &config, None, 1);
         assert!(m.reach_px < 1.0, "{}", m.reach_px);

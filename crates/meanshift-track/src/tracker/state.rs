@@ -516,7 +516,7 @@ pub(super) fn correlation_spread(usual: f64, now: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tracker::two_red_markers;
+    use crate::tracker::{measured_at_point, two_red_markers};
 
     #[test]
     fn a_prediction_thrown_out_of_the_frame_is_held_where_the_marker_swings() -> Result<()> {
@@ -552,18 +552,7 @@ mod tests {
         let config = t.config.clone();
         let m = &mut t.markers[0];
         let home = m.home;
-        let at = |x: f64, y: f64| {
-            let c = Point2::new(home.x + x, home.y + y);
-            Measured {
-                center: c,
-                window: PixelRect::centered_at(c, 11, 11),
-                holds: PixelRect::centered_at(c, 11, 11),
-                confidence: 0.9,
-                moments: None,
-                cut: false,
-                split: false,
-            }
-        };
+        let at = |x: f64, y: f64| measured_at_point(Point2::new(home.x + x, home.y + y));
         // Followed by the quick pass through a swing of ±20 px along x.
         for f in 1..=20u64 {
             let x = 20.0 * (0.6 * f as f64).sin();
