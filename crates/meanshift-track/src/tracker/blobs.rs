@@ -254,7 +254,7 @@ pub(super) fn mean_colour(
 }
 
 /// The saturation (0..255) of an RGB pixel, as OpenCV's `COLOR_RGB2HSV` gives it.
-fn saturation(p: [u8; 3]) -> u8 {
+pub(super) fn saturation(p: [u8; 3]) -> u8 {
     crate::hsv::rgb_to_hsv(p)[1]
 }
 

@@ -69,8 +69,11 @@ pub struct TrackerConfig {
     /// Pixels outside this HSV range do not count for the hue and hue–saturation models
     /// (gray pixels have hue 0, red, so a saturation floor is needed). Each marker lowers the
     /// saturation and value floors to half of what its own palest pixels show (never below
-    /// 24 and 16), so that a blurred, paler marker still counts. Default: saturation
-    /// 60..=255, value 32..=255, any hue.
+    /// 24 and 16), so that a blurred, paler marker still counts; the recovering tracker
+    /// raises a marker's saturation floor halfway to its core where the first frame shows
+    /// much paler pixels of its look (a reddish-brown look-alike touching it or, elsewhere,
+    /// pixels of its hue under 0.6 of its core saturation, such as bark). Default:
+    /// saturation 60..=255, value 32..=255, any hue.
     pub hsv_mask: ChannelRange,
     /// Fixed or adaptive window. Default: fixed.
     pub window: WindowMode,

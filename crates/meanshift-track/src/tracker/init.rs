@@ -11,6 +11,7 @@ impl Tracker {
         frame: &RgbImage,
         depth: Option<&DepthView<'_>>,
         init: &MarkerInit,
+        inits: &[MarkerInit],
     ) -> Result<()> {
         let w = init.window;
         self.check_window(init)?;
@@ -29,7 +30,12 @@ impl Tracker {
         // learnt again with a saturation floor between the two, which keeps the look-alike
         // out of its weights (its blurred streaks still count by their blend with the
         // background), and starts at its own centre.
-        if let Some(floor) = self.paler_floor(frame, &state, &measured, &mask) {
+        // Paler pixels of its hue elsewhere in the frame (reddish bark it may swing onto)
+        // are kept out the same way.
+        let floor = self
+            .paler_floor(frame, &state, &measured, &mask)
+            .or_else(|| self.background_floor(frame, depth, &state, &measured, &mask, inits));
+        if let Some(floor) = floor {
             let raised = ChannelRange {
                 lower: [mask.lower[0], floor, mask.lower[2]],
                 upper: mask.upper,
@@ -170,6 +176,87 @@ impl Tracker {
             side,
         )?;
         let floor = (0.5 * (core + paler)).round().clamp(0.0, 255.0) as u8;
+        Some(floor.max(mask.lower[1]))
+    }
+
+    /// The saturation floor (8-bit levels) that keeps the paler pixels of a colour marker's
+    /// look elsewhere on the first frame out of its weights: pixels at or above its blob
+    /// threshold, away from every marker's window (a window on each side), more than
+    /// [`PALER_LEVELS`] under its core saturation, when there are at least
+    /// [`BACKGROUND_PALER_MARKERS`] markers' worth of them (bark of a red marker's hue that
+    /// it swings onto, where a hue model weighs bark and marker alike and the marker's blob
+    /// runs on into the bark). Halfway between the core and their median, never below
+    /// `mask`'s. `None` for one-channel and kernel models, where there are too few, and
+    /// where their median is not under [`BLUR_KEPT_SATURATION`] of the core (a look-alike
+    /// only somewhat paler is told apart by the look-alike masks).
+    fn background_floor(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        state: &MarkerState,
+        measured: &Measured,
+        mask: &ChannelRange,
+        inits: &[MarkerInit],
+    ) -> Option<u8> {
+        if !self.config.recovery
+            || !matches!(
+                self.config.model,
+                AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. }
+            )
+        {
+            return None;
+        }
+        let side = window_px(state);
+        let core = core_saturation(frame, measured.center, side)?;
+        let whole = image_rect(self.width, self.height);
+        fill(
+            &mut self.region,
+            &self.config,
+            state,
+            frame,
+            None,
+            depth,
+            whole,
+            &[],
+            true,
+        );
+        let away: Vec<PixelRect> = inits
+            .iter()
+            .map(|i| i.window.grown(i.window.width, i.window.height))
+            .collect();
+        let limit = core - PALER_LEVELS;
+        let threshold = state.reference.threshold;
+        let r = &self.region;
+        let mut paler = Vec::new();
+        for y in r.rect.y..r.rect.bottom() as i32 {
+            for x in r.rect.x..r.rect.right() as i32 {
+                if r.weights[r.index(x, y)] < threshold
+                    || away.iter().any(|a| {
+                        x >= a.x
+                            && y >= a.y
+                            && i64::from(x) < a.right()
+                            && i64::from(y) < a.bottom()
+                    })
+                {
+                    continue;
+                }
+                let s = saturation(frame.get_pixel(x as u32, y as u32).0);
+                if f64::from(s) < limit {
+                    paler.push(s);
+                }
+            }
+        }
+        if (paler.len() as f64) < BACKGROUND_PALER_MARKERS * state.reference.pixels.max(1.0) {
+            return None;
+        }
+        let mid = paler.len() / 2;
+        let median = f64::from(*paler.select_nth_unstable(mid).1);
+        // Only pixels paler than a blurred streak of the marker: a look-alike only somewhat
+        // paler is told apart by the look-alike masks.
+        if median >= BLUR_KEPT_SATURATION * core {
+            return None;
+        }
+        let floor = (0.5 * (core + median)).round().clamp(0.0, 255.0) as u8;
         Some(floor.max(mask.lower[1]))
     }
 
@@ -335,6 +422,61 @@ mod tests {
         let at = last.center.unwrap_or(Point2::origin());
         assert!((at - Point2::new(22.0, 32.0)).norm() < 1.5, "{at}");
         assert_eq!(last.status, TrackStatus::Tracked);
+        Ok(())
+    }
+
+    /// A red disc of radius 7 px at (`marker_x`, 40) on grey, and a band of bark of the
+    /// red's hue (hue 178, saturation about 90 against the red's 225) over x 90..130 with
+    /// a darker streak every 5 px, as reddish bark beside a red marker.
+    fn red_over_bark(marker_x: f64) -> RgbImage {
+        RgbImage::from_fn(176, 80, |x, y| {
+            let (dx, dy) = (f64::from(x) - marker_x, f64::from(y) - 40.0);
+            if dx * dx + dy * dy <= 49.0 {
+                if (x + y) % 2 == 0 {
+                    image::Rgb([215, 25, 30])
+                } else {
+                    image::Rgb([215, 30, 25])
+                }
+            } else if (90..130).contains(&x) {
+                if x % 5 == 0 {
+                    image::Rgb([120, 76, 78])
+                } else {
+                    image::Rgb([150, 95, 98])
+                }
+            } else {
+                image::Rgb([100, 110, 95])
+            }
+        })
+    }
+
+    #[test]
+    fn a_marker_swung_onto_bark_of_its_hue_is_measured_on_itself() -> Result<()> {
+        let init = MarkerInit {
+            id: "A".into(),
+            window: PixelRect::new(32, 32, 17, 17),
+        };
+        let mut t = Tracker::new(
+            TrackerConfig::default(),
+            &red_over_bark(40.0),
+            None,
+            &[init],
+        )?;
+        // Onto the bark and across it, 4 px a frame: on the bark the hue model weighs the
+        // bark as the marker, and the marker's blob would be the whole band.
+        let path: Vec<f64> = (1..=20).map(|k| 40.0 + 4.0 * f64::from(k)).collect();
+        for &x in &path {
+            t.update(&red_over_bark(x), None)?;
+        }
+        for (k, &x) in path.iter().enumerate() {
+            let o = t.tracks[0].observations[k + 1];
+            let at = o.center.unwrap_or(Point2::origin());
+            assert!(
+                (at - Point2::new(x, 40.0)).norm() < 1.0 && o.status == TrackStatus::Tracked,
+                "frame {}: {at} {:?} for ({x}, 40)",
+                k + 1,
+                o.status
+            );
+        }
         Ok(())
     }
 }

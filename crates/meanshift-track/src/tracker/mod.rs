@@ -355,6 +355,16 @@ const PALER_SHARE: f64 = 0.4;
 /// Least distance (windows) of the paler pixels' centroid from the marker's own for them to
 /// be a look-alike beside it, not its rim all round.
 const PALER_OFFSET_WINDOWS: f64 = 0.25;
+/// Paler pixels of a colour marker's look elsewhere on the first frame, in markers' worth of
+/// pixels, that raise its saturation floor (see `Tracker::background_floor`): a marker-sized
+/// patch of bark of its hue is enough for its blob to run on into.
+const BACKGROUND_PALER_MARKERS: f64 = 1.0;
+/// Share of a marker's core saturation under which pixels of its look are paler than a
+/// blurred streak of it (motion blur at a release takes about a third of a marker's
+/// saturation: issue 19's real pull-and-release clip), and may be kept out by a raised
+/// saturation floor. A blurred streak under that floor still counts by its blend with the
+/// background (streak weights).
+const BLUR_KEPT_SATURATION: f64 = 0.6;
 /// A blob needs at least this share of the marker's pixels (a partly covered marker).
 const BLOB_MIN_PIXELS: f64 = 0.15;
 /// A candidate blob's width (minor axis) lies within these multiples of the marker's.
@@ -632,7 +642,7 @@ impl Tracker {
             }
         }
         for init in markers {
-            tracker.add_marker(first_frame, depth.as_ref(), init)?;
+            tracker.add_marker(first_frame, depth.as_ref(), init, markers)?;
         }
         if tracker.config.recovery {
             tracker.learn_distractors(first_frame, depth.as_ref());
