@@ -365,6 +365,11 @@ const BACKGROUND_PALER_MARKERS: f64 = 1.0;
 /// saturation floor. A blurred streak under that floor still counts by its blend with the
 /// background (streak weights).
 const BLUR_KEPT_SATURATION: f64 = 0.6;
+/// Share of a cut quick-pass blob's box that a detection blob must hold to be that blob
+/// seen whole (see `holds_whole`).
+const WHOLE_HOLDS_SHARE: f64 = 0.8;
+/// Least confidence of the whole blob against the cut one's.
+const WHOLE_CONFIDENCE_SHARE: f64 = 0.9;
 /// A blob needs at least this share of the marker's pixels (a partly covered marker).
 const BLOB_MIN_PIXELS: f64 = 0.15;
 /// A candidate blob's width (minor axis) lies within these multiples of the marker's.

@@ -397,6 +397,7 @@ impl Tracker {
                 .take(MAX_CANDIDATES),
             );
         }
+        let whole = quick.and_then(|q| whole_of_cut(m, &q.measured, &found[1..]));
         if gate.outside {
             found.retain(|c| (c.center - gate.center).norm() <= gate.radius_px);
         }
@@ -431,7 +432,7 @@ impl Tracker {
                 }
                 Candidate {
                     marker: i,
-                    measured: s.measured,
+                    measured: seen_whole(s.measured, whole),
                     cost: s.cost,
                     context: s.context,
                 }
@@ -668,6 +669,45 @@ impl Confined {
 }
 
 /// The region the quick pass weighs for marker `m` predicted at `pred`: 3x3 windows.
+/// A release streak the quick pass's region cut (`quick`, of marker `m` found in the last
+/// frame), which detection's gate holds whole (among `found`): the cut part is scored (it is
+/// where the marker's motion points), but the whole blob is its measurement, not the part
+/// pulled back toward the prediction (see [`seen_whole`]). The cut part's centre and the
+/// most confident whole blob.
+fn whole_of_cut(
+    m: &MarkerState,
+    quick: &Measured,
+    found: &[Measured],
+) -> Option<(Point2<f64>, Measured)> {
+    if !(quick.cut && m.last_status.found()) {
+        return None;
+    }
+    found
+        .iter()
+        .filter(|c| holds_whole(c, quick))
+        .max_by(|a, b| a.confidence.total_cmp(&b.confidence))
+        .map(|w| (quick.center, *w))
+}
+
+/// The whole blob of [`whole_of_cut`] in place of the cut one it was found for.
+fn seen_whole(measured: Measured, whole: Option<(Point2<f64>, Measured)>) -> Measured {
+    match whole {
+        Some((cut, w)) if measured.cut && measured.center == cut => w,
+        _ => measured,
+    }
+}
+
+/// Whether `whole` is the blob `cut` is part of, seen whole: uncut, larger, holding
+/// [`WHOLE_HOLDS_SHARE`] of the cut one's box, and at least [`WHOLE_CONFIDENCE_SHARE`] as
+/// confident.
+fn holds_whole(whole: &Measured, cut: &Measured) -> bool {
+    let (a, b) = (whole.holds.area() as f64, cut.holds.area() as f64);
+    !whole.cut
+        && a > b
+        && whole.holds.intersect(&cut.holds).area() as f64 >= WHOLE_HOLDS_SHARE * b
+        && whole.confidence >= WHOLE_CONFIDENCE_SHARE * cut.confidence
+}
+
 fn quick_region(m: &MarkerState, pred: Point2<f64>) -> PixelRect {
     let (w, h) = m.size;
     PixelRect::centered_at(pred, w, h).grown(w, h)
@@ -709,7 +749,7 @@ mod tests {
     use crate::tracker::{measured_at_point, two_red_markers};
 
     #[test]
-    fn a_streak_the_quick_region_cuts_is_followed_but_reported_as_an_estimate() -> Result<()> {
+    fn a_streak_the_quick_region_cuts_is_measured_whole_where_detection_holds_it() -> Result<()> {
         let mut t = two_red_markers()?;
         // A released: a streak from its place to 40 px right of it, longer than the quick
         // pass's region of 3x3 windows about its prediction reaches.
@@ -722,18 +762,16 @@ mod tests {
                 image::Rgb([100, 110, 95])
             }
         });
+        let region = quick_region(&t.markers[0], Point2::new(20.0, 30.0));
+        assert!((region.right() as f64) < 60.0, "{region:?}");
         t.update(&frame, None)?;
         let o = t.tracks[0].observations[1];
-        let region = quick_region(&t.markers[0], Point2::new(20.0, 30.0));
         let center = o.center.unwrap_or(Point2::origin());
-        // Followed to the part the region holds (its centre short of the streak's 38 px)...
-        assert!(
-            center.x < region.right() as f64 && center.x > 20.0,
-            "{center}"
-        );
-        // ... which is no place to stand behind.
-        assert_eq!(o.status, TrackStatus::Predicted);
-        assert!(o.confidence > 0.0);
+        // Measured at the streak's centre (38, 30), not at the part the region holds (whose
+        // centre falls short of it), and, whole, a place to stand behind: found by detection
+        // (`recovered`), not an estimate.
+        assert!((center - Point2::new(38.0, 30.0)).norm() < 1.0, "{center}");
+        assert_eq!(o.status, TrackStatus::Recovered);
         // B, whole inside its region, is tracked.
         assert_eq!(t.tracks[1].observations[1].status, TrackStatus::Tracked);
         Ok(())
