@@ -88,6 +88,11 @@ impl PixelRect {
         }
     }
 
+    /// True when pixel `(x, y)` lies in `self`.
+    pub fn contains(&self, x: i32, y: i32) -> bool {
+        x >= self.x && y >= self.y && i64::from(x) < self.right() && i64::from(y) < self.bottom()
+    }
+
     /// True when every pixel of `self` lies in `other` (an empty `self` is never contained).
     pub fn is_inside(&self, other: &PixelRect) -> bool {
         !self.is_empty()

@@ -259,12 +259,7 @@ impl PixelFilter<'_> {
     /// Whether the pixel at `(x, y)` is rejected: in a masked rectangle, or beyond the depth
     /// gate.
     fn rejects(&self, x: i32, y: i32) -> bool {
-        let in_mask = self.masked.iter().any(|m| {
-            i64::from(x) >= i64::from(m.x)
-                && i64::from(y) >= i64::from(m.y)
-                && i64::from(x) < m.right()
-                && i64::from(y) < m.bottom()
-        });
+        let in_mask = self.masked.iter().any(|m| m.contains(x, y));
         in_mask
             || self
                 .depth

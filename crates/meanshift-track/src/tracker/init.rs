@@ -157,12 +157,7 @@ impl Tracker {
         measured: &Measured,
         mask: &ChannelRange,
     ) -> Option<u8> {
-        if !self.config.recovery
-            || !matches!(
-                self.config.model,
-                AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. }
-            )
-        {
+        if !self.raises_floors() {
             return None;
         }
         let side = window_px(state);
@@ -175,8 +170,17 @@ impl Tracker {
             core,
             side,
         )?;
-        let floor = (0.5 * (core + paler)).round().clamp(0.0, 255.0) as u8;
-        Some(floor.max(mask.lower[1]))
+        Some(floor_between(core, paler, mask))
+    }
+
+    /// Whether a marker's saturation floor may be raised against paler pixels of its look:
+    /// the recovering tracker's hue and hue–saturation models.
+    fn raises_floors(&self) -> bool {
+        self.config.recovery
+            && matches!(
+                self.config.model,
+                AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. }
+            )
     }
 
     /// The saturation floor (8-bit levels) that keeps the paler pixels of a colour marker's
@@ -198,16 +202,10 @@ impl Tracker {
         mask: &ChannelRange,
         inits: &[MarkerInit],
     ) -> Option<u8> {
-        if !self.config.recovery
-            || !matches!(
-                self.config.model,
-                AppearanceModel::Hue { .. } | AppearanceModel::HueSaturation { .. }
-            )
-        {
+        if !self.raises_floors() {
             return None;
         }
-        let side = window_px(state);
-        let core = core_saturation(frame, measured.center, side)?;
+        let core = core_saturation(frame, measured.center, window_px(state))?;
         let whole = image_rect(self.width, self.height);
         fill(
             &mut self.region,
@@ -230,14 +228,7 @@ impl Tracker {
         let mut paler = Vec::new();
         for y in r.rect.y..r.rect.bottom() as i32 {
             for x in r.rect.x..r.rect.right() as i32 {
-                if r.weights[r.index(x, y)] < threshold
-                    || away.iter().any(|a| {
-                        x >= a.x
-                            && y >= a.y
-                            && i64::from(x) < a.right()
-                            && i64::from(y) < a.bottom()
-                    })
-                {
+                if r.weights[r.index(x, y)] < threshold || away.iter().any(|a| a.contains(x, y)) {
                     continue;
                 }
                 let s = saturation(frame.get_pixel(x as u32, y as u32).0);
@@ -256,8 +247,7 @@ impl Tracker {
         if median >= BLUR_KEPT_SATURATION * core {
             return None;
         }
-        let floor = (0.5 * (core + median)).round().clamp(0.0, 255.0) as u8;
-        Some(floor.max(mask.lower[1]))
+        Some(floor_between(core, median, mask))
     }
 
     /// A marker's window must hold pixels and lie entirely inside the frame.
@@ -323,6 +313,13 @@ impl Tracker {
     }
 }
 
+/// A raised saturation floor: halfway between a marker's core saturation and the paler
+/// pixels' (8-bit levels), never below `mask`'s.
+fn floor_between(core: f64, paler: f64, mask: &ChannelRange) -> u8 {
+    let floor = (0.5 * (core + paler)).round().clamp(0.0, 255.0) as u8;
+    floor.max(mask.lower[1])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -370,6 +367,16 @@ mod tests {
         Ok(())
     }
 
+    /// A red marker's pixel at `(x, y)`: red on both sides of hue 0 (179 and 1) in a
+    /// checkerboard, as a real red marker is.
+    fn red_marker(x: u32, y: u32) -> image::Rgb<u8> {
+        if (x + y).is_multiple_of(2) {
+            image::Rgb([215, 25, 30])
+        } else {
+            image::Rgb([215, 30, 25])
+        }
+    }
+
     /// A red disc of radius 7 px at (`marker_x`, 32) on grey, in front of a reddish-brown
     /// one of radius 8 at (45, 37) (saturation about 180 against the red's 225; hue 4, in a
     /// bin of the red's), which it half covers when it is at 40.
@@ -380,12 +387,7 @@ mod tests {
                 dx * dx + dy * dy <= r * r
             };
             if d2(marker_x, 32.0, 7.0) {
-                // Red on both sides of hue 0 (179 and 1), as a real red marker is.
-                if (x + y) % 2 == 0 {
-                    image::Rgb([215, 25, 30])
-                } else {
-                    image::Rgb([215, 30, 25])
-                }
+                red_marker(x, y)
             } else if d2(45.0, 37.0, 8.0) {
                 image::Rgb([150, 60, 45])
             } else {
@@ -432,11 +434,7 @@ mod tests {
         RgbImage::from_fn(176, 80, |x, y| {
             let (dx, dy) = (f64::from(x) - marker_x, f64::from(y) - 40.0);
             if dx * dx + dy * dy <= 49.0 {
-                if (x + y) % 2 == 0 {
-                    image::Rgb([215, 25, 30])
-                } else {
-                    image::Rgb([215, 30, 25])
-                }
+                red_marker(x, y)
             } else if (90..130).contains(&x) {
                 if x % 5 == 0 {
                     image::Rgb([120, 76, 78])
