@@ -11,9 +11,11 @@
 //!
 //! A [`StressScene`] renders frame `k` on demand ([`StressScene::frame`]), so long sequences
 //! (a 240 fps clip) need no memory for frames that are not in use; the same `k` always gives
-//! the same image. The truth of a marker is its centre at the middle of the exposure (for a
-//! streak, the streak's centre) and the fraction of its disc that is visible (inside the
-//! frame and not covered). [`score_stress`] measures tracks against that truth the strict way:
+//! the same image. The truth of a marker is the centre of what its exposure drew (the mean of
+//! its centres over the exposure: for a marker moving evenly, its centre at mid-exposure; for
+//! a streak whose motion changes within the exposure, as at a release, a swing's turn or the
+//! start of a camera shake, the streak's centre) and the fraction of its disc that is
+//! visible (inside the frame and not covered). [`score_stress`] measures tracks against that truth the strict way:
 //! only fully visible frames count towards accuracy, a loss is counted from the frame a marker
 //! becomes fully visible, and any frame reported as found far from the truth is counted.
 //!

@@ -309,11 +309,45 @@ impl StressScene {
             + self.shake(t_s)
     }
 
-    /// True centre of every marker in `frame` (middle of the exposure), in marker order.
+    /// True centre of every marker in `frame`, in marker order: the centre of what the
+    /// exposure drew, the mean of its centres at the exposure's sub-samples (those
+    /// [`StressScene::frame`] renders). For a marker moving evenly that is its centre at the
+    /// middle of the exposure; where the motion changes within the exposure (a release, the
+    /// first frame of a camera shake, the turn of a swing) it is the streak's centre, which
+    /// the middle of the exposure is not: a shake that starts halfway through the exposure
+    /// draws every marker's streak from its still place out along the shake, and the streak's
+    /// centre lies several pixels from where the marker was at mid-exposure.
     pub fn truth(&self, frame: usize) -> Vec<Point2<f64>> {
+        let times = self.exposure_times(frame);
+        let n = times.len() as f64;
+        (0..self.markers.len())
+            .map(|k| {
+                let sum = times.iter().fold(Vector2::zeros(), |acc, &ts| {
+                    acc + self.marker_at(k, ts).coords
+                });
+                Point2::from(sum / n)
+            })
+            .collect()
+    }
+
+    /// Every marker's centre at the middle of `frame`'s exposure, in marker order (the
+    /// stress sequences' truth until 5 December 2026; it differs from [`StressScene::truth`]
+    /// only where the motion changes within the exposure).
+    pub fn mid_exposure(&self, frame: usize) -> Vec<Point2<f64>> {
         let t = self.time_s(frame);
         (0..self.markers.len())
             .map(|k| self.marker_at(k, t))
+            .collect()
+    }
+
+    /// The times (seconds) of `frame`'s exposure sub-samples, as [`StressScene::frame`]
+    /// renders them.
+    fn exposure_times(&self, frame: usize) -> Vec<f64> {
+        let t = self.time_s(frame);
+        let exposure = self.exposure_s();
+        let subs = self.subsamples(frame);
+        (0..subs)
+            .map(|s| t + exposure * ((s as f64 + 0.5) / subs as f64 - 0.5))
             .collect()
     }
 
@@ -397,15 +431,9 @@ impl StressScene {
                 .wrapping_add(frame as u64)
                 .rotate_left(17),
         );
-        let t = self.time_s(frame);
-        let exposure = self.exposure_s();
-        let subs = self.subsamples(frame);
+        let times = self.exposure_times(frame);
         let full = PixelRect::image(cfg.width, cfg.height);
-        let shaking = (0..subs).any(|s| {
-            self.shake(t + exposure * ((s as f64 + 0.5) / subs as f64 - 0.5))
-                .norm()
-                > 0.05
-        });
+        let shaking = times.iter().any(|&ts| self.shake(ts).norm() > 0.05);
         let dirty = if shaking {
             full
         } else {
@@ -419,8 +447,7 @@ impl StressScene {
         }
         if !dirty.is_empty() {
             let mut acc = vec![0.0f32; dirty.area() as usize * 3];
-            for s in 0..subs {
-                let ts = t + exposure * ((s as f64 + 0.5) / subs as f64 - 0.5);
+            for &ts in &times {
                 let shake = self.shake(ts);
                 let mut layer = Canvas::from_shifted(&back, dirty, shake);
                 self.draw_moving(&mut layer, frame, ts, shake);
@@ -428,7 +455,7 @@ impl StressScene {
                     *a += v;
                 }
             }
-            canvas.set_rect(dirty, &acc, 1.0 / subs as f32);
+            canvas.set_rect(dirty, &acc, 1.0 / times.len() as f32);
         }
         finish(&canvas, cfg, frame, &mut rng)
     }

@@ -155,3 +155,59 @@ fn bad_configs_are_errors() {
             .expect("presets are valid");
     }
 }
+
+/// Where the motion changes within the exposure (a swing turning, a release, the start of a
+/// camera shake), the truth is the centre of the streak the frame shows, not the marker's
+/// place at mid-exposure: at 30 fps with the whole frame exposed, a swing's turn draws a
+/// streak out and back whose centre lies inside the turning point.
+#[test]
+fn the_truth_of_a_blurred_frame_is_the_streaks_centre() {
+    let cfg = StressConfig {
+        stems: false,
+        fps_hz: 30.0,
+        duration_s: 1.5,
+        release_s: 10.0 / 30.0,
+        amplitude_px: [40.0, 50.0],
+        frequency_hz: [2.0, 2.5],
+        exposure_fraction: 1.0,
+        shake_px: 12.0,
+        ..StressConfig::condition(Condition::Release240, 1)
+    };
+    let scene = StressScene::new(&cfg).expect("valid");
+    let apart = |f: usize| (scene.truth(f)[0] - scene.mid_exposure(f)[0]).norm();
+    let f = (1..scene.frames())
+        .max_by(|&a, &b| apart(a).total_cmp(&apart(b)))
+        .expect("frames");
+    assert!(apart(f) > 2.0, "frame {f}: {} px", apart(f));
+    // The streak's centre: pixels weighed by how much of the exposure the marker covered
+    // them, against the wall's colour (the median of the frame).
+    let frame = scene.frame(f).expect("frame");
+    let median = |c: usize| {
+        let mut v: Vec<u8> = frame.pixels().map(|p| p.0[c]).collect();
+        let mid = v.len() / 2;
+        f64::from(*v.select_nth_unstable(mid).1)
+    };
+    let g = [median(0), median(1), median(2)];
+    let m = scene.markers()[0].rgb.map(f64::from);
+    let d = [m[0] - g[0], m[1] - g[1], m[2] - g[2]];
+    let dd = d.iter().map(|v| v * v).sum::<f64>();
+    let (mut sum, mut weight) = (Vector2::zeros(), 0.0);
+    for (x, y, p) in frame.enumerate_pixels() {
+        let e = [0, 1, 2].map(|c| f64::from(p.0[c]) - g[c]);
+        let a = (e.iter().zip(&d).map(|(e, d)| e * d).sum::<f64>() / dd).clamp(0.0, 1.0);
+        if a > 0.1 {
+            sum += Vector2::new(f64::from(x), f64::from(y)) * a;
+            weight += a;
+        }
+    }
+    let centre = Point2::from(sum / weight);
+    let c = scene.truth(f)[0];
+    let (to_truth, to_mid) = (
+        (centre - c).norm(),
+        (centre - scene.mid_exposure(f)[0]).norm(),
+    );
+    assert!(
+        to_truth < 0.5 && to_mid > 2.0,
+        "streak centre {centre}: {to_truth} px from the truth, {to_mid} px from mid-exposure"
+    );
+}
