@@ -89,6 +89,9 @@ fn bench(c: &mut Criterion) {
     // Markers released out of the frame and back: lost for up to tens of frames each, their
     // gates growing to much of the frame, then found again (the search for lost markers).
     bench_sequence(&mut group, Condition::Reentry, "reentry");
+    // Everything at once (the slowest condition against OpenCV): blur and a camera shake at
+    // the release, jumps, re-entries, occlusions, crossings, flicker, JPEG, look-alikes.
+    bench_sequence(&mut group, Condition::Combined, "combined");
     group.finish();
 }
 
