@@ -5,14 +5,16 @@ use super::*;
 
 impl Tracker {
     /// Learn marker `init` from the first frame (its model, reference blob, colour and
-    /// surroundings) and start its track there.
+    /// surroundings) and start its track there. Returns the blobs of its look over the whole
+    /// first frame when learning it found them (see [`Tracker::background_floor`]), for
+    /// [`Tracker::learn_distractors`].
     pub(super) fn add_marker(
         &mut self,
         frame: &RgbImage,
         depth: Option<&DepthView<'_>>,
         init: &MarkerInit,
         inits: &[MarkerInit],
-    ) -> Result<()> {
+    ) -> Result<Option<Vec<Measured>>> {
         let w = init.window;
         self.check_window(init)?;
         let config = &self.config;
@@ -32,9 +34,16 @@ impl Tracker {
         // background), and starts at its own centre.
         // Paler pixels of its hue elsewhere in the frame (reddish bark it may swing onto)
         // are kept out the same way.
-        let floor = self
-            .paler_floor(frame, &state, &measured, &mask)
-            .or_else(|| self.background_floor(frame, depth, &state, &measured, &mask, inits));
+        let mut first_blobs = None;
+        let floor = match self.paler_floor(frame, &state, &measured, &mask) {
+            Some(floor) => Some(floor),
+            None => {
+                let (floor, blobs) =
+                    self.background_floor(frame, depth, &state, &measured, &mask, inits);
+                first_blobs = blobs;
+                floor
+            }
+        };
         if let Some(floor) = floor {
             let raised = ChannelRange {
                 lower: [mask.lower[0], floor, mask.lower[2]],
@@ -64,7 +73,7 @@ impl Tracker {
             id: init.id.clone(),
             observations: vec![observation],
         });
-        Ok(())
+        Ok(first_blobs)
     }
 
     /// Marker `init`'s state learnt from the first frame with `model` under `mask` (its
@@ -192,7 +201,9 @@ impl Tracker {
     /// runs on into the bark). Halfway between the core and their median, never below
     /// `mask`'s. `None` for one-channel and kernel models, where there are too few, and
     /// where their median is not under [`BLUR_KEPT_SATURATION`] of the core (a look-alike
-    /// only somewhat paler is told apart by the look-alike masks).
+    /// only somewhat paler is told apart by the look-alike masks). With no floor, also the
+    /// blobs of the marker's look over the whole frame that weighing it found (the marker's
+    /// own among them), which [`Tracker::learn_distractors`] would weigh the frame again for.
     fn background_floor(
         &mut self,
         frame: &RgbImage,
@@ -201,11 +212,13 @@ impl Tracker {
         measured: &Measured,
         mask: &ChannelRange,
         inits: &[MarkerInit],
-    ) -> Option<u8> {
+    ) -> (Option<u8>, Option<Vec<Measured>>) {
         if !self.raises_floors() {
-            return None;
+            return (None, None);
         }
-        let core = core_saturation(frame, measured.center, window_px(state))?;
+        let Some(core) = core_saturation(frame, measured.center, window_px(state)) else {
+            return (None, None);
+        };
         let whole = image_rect(self.width, self.height);
         fill(
             &mut self.region,
@@ -225,29 +238,41 @@ impl Tracker {
         let limit = core - PALER_LEVELS;
         let threshold = state.reference.threshold;
         let r = &self.region;
+        let width = r.rect.width.max(1) as usize;
         let mut paler = Vec::new();
-        for y in r.rect.y..r.rect.bottom() as i32 {
-            for x in r.rect.x..r.rect.right() as i32 {
-                if r.weights[r.index(x, y)] < threshold || away.iter().any(|a| a.contains(x, y)) {
-                    continue;
-                }
-                let s = saturation(frame.get_pixel(x as u32, y as u32).0);
-                if f64::from(s) < limit {
-                    paler.push(s);
-                }
+        for (k, _) in r
+            .weights
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| **w >= threshold)
+        {
+            let (x, y) = (r.rect.x + (k % width) as i32, r.rect.y + (k / width) as i32);
+            if away.iter().any(|a| a.contains(x, y)) {
+                continue;
+            }
+            let s = saturation(frame.get_pixel(x as u32, y as u32).0);
+            if f64::from(s) < limit {
+                paler.push(s);
             }
         }
-        if (paler.len() as f64) < BACKGROUND_PALER_MARKERS * state.reference.pixels.max(1.0) {
-            return None;
-        }
-        let mid = paler.len() / 2;
-        let median = f64::from(*paler.select_nth_unstable(mid).1);
+        let enough =
+            paler.len() as f64 >= BACKGROUND_PALER_MARKERS * state.reference.pixels.max(1.0);
         // Only pixels paler than a blurred streak of the marker: a look-alike only somewhat
         // paler is told apart by the look-alike masks.
-        if median >= BLUR_KEPT_SATURATION * core {
-            return None;
+        let median = enough.then(|| {
+            let mid = paler.len() / 2;
+            f64::from(*paler.select_nth_unstable(mid).1)
+        });
+        match median {
+            Some(median) if median < BLUR_KEPT_SATURATION * core => {
+                (Some(floor_between(core, median, mask)), None)
+            }
+            _ => {
+                let blobs =
+                    candidates_in(&mut self.region, &mut self.labeler, state, None, &[], &[]);
+                (None, Some(blobs))
+            }
         }
-        Some(floor_between(core, median, mask))
     }
 
     /// A marker's window must hold pixels and lie entirely inside the frame.
@@ -275,31 +300,40 @@ impl Tracker {
     }
 
     /// Every marker-like blob of each marker's appearance on the first frame that is not a
-    /// marker: a look-alike from the start.
-    pub(super) fn learn_distractors(&mut self, frame: &RgbImage, depth: Option<&DepthView<'_>>) {
+    /// marker: a look-alike from the start. `found[k]`, where given, holds marker `k`'s blobs
+    /// over the whole frame already (see [`Tracker::add_marker`]); the others are weighed.
+    pub(super) fn learn_distractors(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        found: Vec<Option<Vec<Measured>>>,
+    ) {
         let centres: Vec<(Point2<f64>, f64)> = self
             .markers
             .iter()
             .map(|m| (m.last_center, window_px(m)))
             .collect();
         let whole = image_rect(self.width, self.height);
-        for m in &mut self.markers {
+        for (m, found) in self.markers.iter_mut().zip(found) {
             if m.template.is_some() {
                 continue;
             }
-            fill(
-                &mut self.region,
-                &self.config,
-                m,
-                frame,
-                None,
-                depth,
-                whole,
-                &[],
-                // Only the blobs' places are kept: a sparse fill gives the same.
-                true,
-            );
-            for c in candidates_in(&mut self.region, &mut self.labeler, m, None, &[], &[]) {
+            let blobs = found.unwrap_or_else(|| {
+                fill(
+                    &mut self.region,
+                    &self.config,
+                    m,
+                    frame,
+                    None,
+                    depth,
+                    whole,
+                    &[],
+                    // Only the blobs' places are kept: a sparse fill gives the same.
+                    true,
+                );
+                candidates_in(&mut self.region, &mut self.labeler, m, None, &[], &[])
+            });
+            for c in blobs {
                 if centres
                     .iter()
                     .all(|(p, side)| (p - c.center).norm() > 0.5 * side)

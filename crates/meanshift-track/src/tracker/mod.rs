@@ -646,11 +646,12 @@ impl Tracker {
                 });
             }
         }
+        let mut found = Vec::with_capacity(markers.len());
         for init in markers {
-            tracker.add_marker(first_frame, depth.as_ref(), init, markers)?;
+            found.push(tracker.add_marker(first_frame, depth.as_ref(), init, markers)?);
         }
         if tracker.config.recovery {
-            tracker.learn_distractors(first_frame, depth.as_ref());
+            tracker.learn_distractors(first_frame, depth.as_ref(), found);
             // The previous frame gives colour markers their streaks and tells a still
             // look-alike from a moving marker; gray targets (templates) need neither, so they
             // are spared a copy of every frame.
