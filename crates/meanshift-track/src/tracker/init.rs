@@ -35,7 +35,7 @@ impl Tracker {
         // Paler pixels of its hue elsewhere in the frame (reddish bark it may swing onto)
         // are kept out the same way.
         let mut first_blobs = None;
-        let floor = match self.paler_floor(frame, &state, &measured, &mask) {
+        let floor = match self.paler_floor(frame, &state, &measured, w, &mask) {
             Some(floor) => Some(floor),
             None => {
                 let (floor, blobs) =
@@ -158,19 +158,24 @@ impl Tracker {
     /// marker out of its weights, when the marker's first blob holds one (see
     /// [`paler_part`]): halfway between the marker's core saturation and the look-alike's
     /// median, never below `mask`'s. `None` for one-channel and kernel models, and for a
-    /// blob without such a part.
+    /// blob without such a part. The core is the more saturated of the blob's centre and the
+    /// first `window`'s: a look-alike touching the marker pulls the blob's centre toward it,
+    /// where the core reads paler than the marker (on a crossing sequence 198 against the
+    /// marker's 215, so that most of a look-alike of about 175 counted as the marker's own).
     fn paler_floor(
         &self,
         frame: &RgbImage,
         state: &MarkerState,
         measured: &Measured,
+        window: PixelRect,
         mask: &ChannelRange,
     ) -> Option<u8> {
         if !self.raises_floors() {
             return None;
         }
         let side = window_px(state);
-        let core = core_saturation(frame, measured.center, side)?;
+        let core = core_saturation(frame, measured.center, side)?
+            .max(core_saturation(frame, window.center(), side).unwrap_or(0.0));
         let paler = paler_part(
             frame,
             &self.region,
