@@ -15,9 +15,10 @@
 //! its centres over the exposure: for a marker moving evenly, its centre at mid-exposure; for
 //! a streak whose motion changes within the exposure, as at a release, a swing's turn or the
 //! start of a camera shake, the streak's centre) and the fraction of its disc that is
-//! visible (inside the frame and not covered). [`score_stress`] measures tracks against that truth the strict way:
-//! only fully visible frames count towards accuracy, a loss is counted from the frame a marker
-//! becomes fully visible, and any frame reported as found far from the truth is counted.
+//! visible (inside the frame and not covered). [`score_stress`] measures tracks against that
+//! truth the strict way: only fully visible frames count towards accuracy, a loss is counted
+//! from the frame a marker becomes fully visible, and any frame reported as found far from
+//! the truth is counted.
 //!
 //! Tests and benches tune on [`TUNING_SEEDS`] and are judged on [`EVALUATION_SEEDS`]; a
 //! second generator written apart from this one (`eval/stress_opencv.py`) judges the tracker

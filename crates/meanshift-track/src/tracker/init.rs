@@ -224,18 +224,7 @@ impl Tracker {
         let Some(core) = core_saturation(frame, measured.center, window_px(state)) else {
             return (None, None);
         };
-        let whole = image_rect(self.width, self.height);
-        fill(
-            &mut self.region,
-            &self.config,
-            state,
-            frame,
-            None,
-            depth,
-            whole,
-            &[],
-            true,
-        );
+        weigh_first_frame(&mut self.region, &self.config, state, frame, depth);
         let away: Vec<PixelRect> = inits
             .iter()
             .map(|i| i.window.grown(i.window.width, i.window.height))
@@ -321,24 +310,12 @@ impl Tracker {
             .iter()
             .map(|m| (m.last_center, window_px(m)))
             .collect();
-        let whole = image_rect(self.width, self.height);
         for (m, found) in self.markers.iter_mut().zip(found) {
             if m.template.is_some() {
                 continue;
             }
             let blobs = found.unwrap_or_else(|| {
-                fill(
-                    &mut self.region,
-                    &self.config,
-                    m,
-                    frame,
-                    None,
-                    depth,
-                    whole,
-                    &[],
-                    // Only the blobs' places are kept: a sparse fill gives the same.
-                    true,
-                );
+                weigh_first_frame(&mut self.region, &self.config, m, frame, depth);
                 candidates_in(&mut self.region, &mut self.labeler, m, None, &[], &[])
             });
             for c in blobs {
@@ -353,6 +330,20 @@ impl Tracker {
             }
         }
     }
+}
+
+/// Weigh marker `m`'s look over the whole first `frame` into `region` (no previous frame,
+/// nothing masked), sparsely: the background floor and the first look-alikes need only the
+/// blobs and the pixels over the blob threshold, which a sparse fill gives as a full one does.
+fn weigh_first_frame(
+    region: &mut Region,
+    config: &TrackerConfig,
+    m: &MarkerState,
+    frame: &RgbImage,
+    depth: Option<&DepthView<'_>>,
+) {
+    let whole = image_rect(frame.width(), frame.height());
+    fill(region, config, m, frame, None, depth, whole, &[], true);
 }
 
 /// Weights passed over together by the background floor's scan when none reaches the blob
