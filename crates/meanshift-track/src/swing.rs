@@ -35,6 +35,12 @@ const MAX_OMEGA_PER_FRAME: f64 = 1.5;
 /// swings and constant velocity does as well.
 const MIN_ACCELERATION_PX: f64 = 0.5;
 
+/// Positions a constant acceleration is fitted to for [`Swing::extrapolate`].
+const EXTRAPOLATE_POINTS: usize = 5;
+/// Most frames [`Swing::extrapolate`] looks ahead of the last position.
+const EXTRAPOLATE_MAX_AHEAD: u64 = 3;
+/// Loosest fit [`Swing::extrapolate`] trusts: root-mean-square residual, pixels.
+const EXTRAPOLATE_MAX_RMS_PX: f64 = 0.75;
 /// Least number of positions for a swing line.
 const LINE_MIN_POINTS: usize = 12;
 /// Least ratio of the spreads along and across the swing for a line (a branch that swings
@@ -180,6 +186,63 @@ impl Swing {
         (a.x.is_finite() && a.y.is_finite()).then_some(a)
     }
 
+    /// Where the last [`EXTRAPOLATE_POINTS`] positions (consecutive frames) put the marker on
+    /// `frame`, and its velocity there, by a constant acceleration fitted to them: a marker
+    /// speeding up in a pull, hidden behind another of its look for a frame or two, is
+    /// still speeding up (a constant velocity falls behind by half the acceleration times
+    /// the frames squared). `None` beyond [`EXTRAPOLATE_MAX_AHEAD`] frames after the last
+    /// position, when the fit is loose (root-mean-square residual over
+    /// [`EXTRAPOLATE_MAX_RMS_PX`]) or the acceleration too small to matter
+    /// ([`MIN_ACCELERATION_PX`]).
+    pub(crate) fn extrapolate(&self, frame: u64) -> Option<(Point2<f64>, Vector2<f64>)> {
+        let n = self.history.len();
+        if n < EXTRAPOLATE_POINTS {
+            return None;
+        }
+        let recent: Vec<(u64, Point2<f64>)> = self
+            .history
+            .range(n - EXTRAPOLATE_POINTS..)
+            .copied()
+            .collect();
+        let (last, _) = recent[EXTRAPOLATE_POINTS - 1];
+        if recent.windows(2).any(|w| w[1].0 != w[0].0 + 1)
+            || frame <= last
+            || frame - last > EXTRAPOLATE_MAX_AHEAD
+        {
+            return None;
+        }
+        let mut normal = Matrix3::zeros();
+        let mut rhs = [Vector3::zeros(), Vector3::zeros()];
+        for &(f, p) in &recent {
+            let t = f as f64 - last as f64;
+            let row = Vector3::new(1.0, t, 0.5 * t * t);
+            normal += row * row.transpose();
+            rhs[0] += row * p.x;
+            rhs[1] += row * p.y;
+        }
+        let lu = normal.lu();
+        let (cx, cy) = (lu.solve(&rhs[0])?, lu.solve(&rhs[1])?);
+        let residual: f64 = recent
+            .iter()
+            .map(|&(f, p)| {
+                let t = f as f64 - last as f64;
+                let row = Vector3::new(1.0, t, 0.5 * t * t);
+                (row.dot(&cx) - p.x).powi(2) + (row.dot(&cy) - p.y).powi(2)
+            })
+            .sum();
+        let a = Vector2::new(cx[2], cy[2]);
+        if residual > EXTRAPOLATE_MAX_RMS_PX.powi(2) * EXTRAPOLATE_POINTS as f64
+            || a.norm() < MIN_ACCELERATION_PX
+        {
+            return None;
+        }
+        let t = (frame - last) as f64;
+        let at = |c: Vector3<f64>| c[0] + c[1] * t + 0.5 * c[2] * t * t;
+        let p = Point2::new(at(cx), at(cy));
+        let v = Vector2::new(cx[1] + cx[2] * t, cy[1] + cy[2] * t);
+        (p.x.is_finite() && p.y.is_finite() && v.x.is_finite() && v.y.is_finite()).then_some((p, v))
+    }
+
     fn refit(&mut self) {
         self.line = self.fit_line();
         let h = &self.history;
@@ -300,6 +363,54 @@ mod tests {
             );
         }
         assert!(c.line().is_none());
+    }
+
+    #[test]
+    fn a_speeding_up_track_is_extrapolated_on_its_acceleration_for_a_few_frames() {
+        let at = |f: u64| {
+            let t = f as f64;
+            Point2::new(100.0 + 0.5 * t + 0.3 * t * t, 40.0 - 0.25 * t * t)
+        };
+        let mut s = Swing::default();
+        for f in 0..6 {
+            s.record(f, at(f));
+        }
+        for ahead in 1..=EXTRAPOLATE_MAX_AHEAD {
+            let (p, v) = s
+                .extrapolate(5 + ahead)
+                .expect("a clean constant acceleration");
+            assert!(
+                (p - at(5 + ahead)).norm() < 1e-9,
+                "{p} vs {}",
+                at(5 + ahead)
+            );
+            let t = (5 + ahead) as f64;
+            assert!(
+                (v - Vector2::new(0.5 + 0.6 * t, -0.5 * t)).norm() < 1e-9,
+                "{v}"
+            );
+        }
+        // Too far ahead, or for a frame already seen.
+        assert!(s.extrapolate(6 + EXTRAPOLATE_MAX_AHEAD).is_none());
+        assert!(s.extrapolate(5).is_none());
+        // A steady velocity has no acceleration to add.
+        let mut steady = Swing::default();
+        for f in 0..6 {
+            steady.record(f, Point2::new(3.0 * f as f64, 10.0));
+        }
+        assert!(steady.extrapolate(6).is_none());
+        // A gap among the last positions, or a track that jitters, is not extrapolated.
+        let mut gap = Swing::default();
+        for f in [0, 1, 2, 4, 5] {
+            gap.record(f, at(f));
+        }
+        assert!(gap.extrapolate(6).is_none());
+        let mut jitter = Swing::default();
+        for f in 0..6 {
+            let d = if f % 2 == 0 { 2.0 } else { -2.0 };
+            jitter.record(f, at(f) + Vector2::new(d, -d));
+        }
+        assert!(jitter.extrapolate(6).is_none());
     }
 
     #[test]

@@ -3,7 +3,9 @@
 //!
 //! Each frame:
 //! 1. **Predict** every marker with a constant-velocity Kalman filter ([`MotionModel`]); its
-//!    covariance is the gate: how far from the prediction a measurement may lie.
+//!    covariance is the gate: how far from the prediction a measurement may lie. A learnt
+//!    swing bends the prediction; before one is learnt, a marker coasting after a miss (or
+//!    hidden behind another of its look) goes on at the acceleration of its last positions.
 //! 2. **Quick pass**: mean-shift from the prediction over a region three windows wide; the
 //!    measurement is the weighted centroid of the blob the window converged on (for a marker
 //!    smeared by motion blur, the streak's centre), or the window's centroid when no
@@ -745,8 +747,9 @@ impl Tracker {
         let depth = depth.as_ref();
         let n = self.markers.len();
         let (width, height) = (self.width, self.height);
+        let frame_index = self.frames() as u64;
         for m in &mut self.markers {
-            m.predict(&self.config, (width, height));
+            m.predict(&self.config, (width, height), frame_index);
             m.gate_var = m.filter.innovation_var(MEASUREMENT_PX);
         }
         let predictions: Vec<Point2<f64>> = self

@@ -323,8 +323,9 @@ impl Tracker {
     pub(super) fn next_regions(&self) -> Vec<PixelRect> {
         let size = (self.width, self.height);
         let mut regions = Vec::with_capacity(2 * self.markers.len());
+        let frame_index = self.frames() as u64;
         for m in self.markers.iter().filter(|m| m.template.is_none()) {
-            let filter = m.predicted(&self.config, size);
+            let filter = m.predicted(&self.config, size, frame_index);
             let gate_var = filter.innovation_var(MEASUREMENT_PX);
             let pred = clamp_into(filter.position, self.width, self.height);
             regions.push(quick_region(m, pred));

@@ -254,13 +254,18 @@ impl MarkerState {
 
     /// One frame ahead: the motion model, then held in the frame of `size` (see
     /// [`MarkerState::held_in_frame`]).
-    pub(super) fn predict(&mut self, config: &TrackerConfig, size: (u32, u32)) {
-        self.filter = self.predicted(config, size);
+    pub(super) fn predict(&mut self, config: &TrackerConfig, size: (u32, u32), frame: u64) {
+        self.filter = self.predicted(config, size, frame);
     }
 
     /// The filter one frame ahead, as [`MarkerState::predict`] leaves it, without changing
-    /// the marker: what the next frame will look at is known before it comes.
-    pub(super) fn predicted(&self, config: &TrackerConfig, size: (u32, u32)) -> Kalman {
+    /// the marker: what the next frame will look at is known before it comes. `frame` is
+    /// the index of the frame predicted: a marker that was not found in the frame before and
+    /// has no swing learnt yet is extrapolated on the acceleration of its last positions
+    /// ([`crate::swing::Swing::extrapolate`]), so that one speeding up in a pull and hidden
+    /// behind another of its look for a frame or two is looked for where it went, not where
+    /// a constant (and, while coasting, decaying) velocity leaves it behind.
+    pub(super) fn predicted(&self, config: &TrackerConfig, size: (u32, u32), frame: u64) -> Kalman {
         let mut f = self.filter;
         match config.motion {
             MotionModel::Static => {
@@ -274,6 +279,12 @@ impl MarkerState {
                 if let Some(a) = self.swing.acceleration(p, v) {
                     f.position += a;
                     f.velocity += a;
+                } else if !self.last_status.found()
+                    && let Some((q, w)) = self.swing.extrapolate(frame)
+                {
+                    // Coasting before any swing is learnt: on the track's own acceleration.
+                    f.position = q;
+                    f.velocity = w;
                 }
             }
         }
@@ -543,6 +554,43 @@ mod tests {
         m.filter.position = off;
         m.filter = m.held_in_frame(m.filter, size);
         assert_eq!(m.filter.position, off);
+        Ok(())
+    }
+
+    #[test]
+    fn a_marker_coasting_before_its_swing_is_learnt_goes_on_at_its_acceleration() -> Result<()> {
+        let mut t = two_red_markers()?;
+        let (config, size) = (t.config.clone(), (t.width, t.height));
+        let m = &mut t.markers[0];
+        let home = m.home;
+        let at = |f: u64| {
+            let s = f as f64;
+            Point2::new(home.x + 0.5 * s * s, home.y)
+        };
+        // Speeding up at 1 px/frame² for six frames, found in each: too few for a swing.
+        for f in 1..=6u64 {
+            m.predict(&config, size, f);
+            m.found(
+                measured_at_point(at(f)),
+                TrackStatus::Tracked,
+                &config,
+                None,
+                f,
+            );
+        }
+        // Frame 7 is predicted as the filter has it (the marker was found in frame 6); it
+        // is not found there (hidden), and frame 8 goes on at the acceleration.
+        m.predict(&config, size, 7);
+        m.merged(size);
+        let coasting = m.predicted(&config, size, 8).position;
+        assert!((coasting - at(8)).norm() < 0.5, "{coasting} vs {}", at(8));
+        // What the filter's velocity, decayed while coasting, would give: half a window behind.
+        let mut cv = m.filter;
+        cv.predict(m.acceleration_px);
+        assert!((cv.position - at(8)).norm() > 4.0, "{}", cv.position);
+        // Found in the frame before, the filter predicts as it always has.
+        m.last_status = TrackStatus::Tracked;
+        assert_eq!(m.predicted(&config, size, 8).position, cv.position);
         Ok(())
     }
 
