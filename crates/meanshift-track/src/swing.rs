@@ -196,50 +196,29 @@ impl Swing {
     /// ([`MIN_ACCELERATION_PX`]).
     pub(crate) fn extrapolate(&self, frame: u64) -> Option<(Point2<f64>, Vector2<f64>)> {
         let n = self.history.len();
-        if n < EXTRAPOLATE_POINTS {
+        let (last, _) = *self.history.back()?;
+        if n < EXTRAPOLATE_POINTS || frame <= last || frame - last > EXTRAPOLATE_MAX_AHEAD {
             return None;
         }
-        let recent: Vec<(u64, Point2<f64>)> = self
-            .history
-            .range(n - EXTRAPOLATE_POINTS..)
-            .copied()
-            .collect();
-        let (last, _) = recent[EXTRAPOLATE_POINTS - 1];
-        if recent.windows(2).any(|w| w[1].0 != w[0].0 + 1)
-            || frame <= last
-            || frame - last > EXTRAPOLATE_MAX_AHEAD
+        let mut recent = [(0.0, Point2::origin()); EXTRAPOLATE_POINTS];
+        for (slot, (k, &(f, p))) in recent
+            .iter_mut()
+            .zip(self.history.range(n - EXTRAPOLATE_POINTS..).enumerate())
         {
-            return None;
+            // Consecutive frames, ending at the last.
+            if f + (EXTRAPOLATE_POINTS - 1 - k) as u64 != last {
+                return None;
+            }
+            *slot = (f as f64 - last as f64, p);
         }
-        let mut normal = Matrix3::zeros();
-        let mut rhs = [Vector3::zeros(), Vector3::zeros()];
-        for &(f, p) in &recent {
-            let t = f as f64 - last as f64;
-            let row = Vector3::new(1.0, t, 0.5 * t * t);
-            normal += row * row.transpose();
-            rhs[0] += row * p.x;
-            rhs[1] += row * p.y;
-        }
-        let lu = normal.lu();
-        let (cx, cy) = (lu.solve(&rhs[0])?, lu.solve(&rhs[1])?);
-        let residual: f64 = recent
-            .iter()
-            .map(|&(f, p)| {
-                let t = f as f64 - last as f64;
-                let row = Vector3::new(1.0, t, 0.5 * t * t);
-                (row.dot(&cx) - p.x).powi(2) + (row.dot(&cy) - p.y).powi(2)
-            })
-            .sum();
-        let a = Vector2::new(cx[2], cy[2]);
-        if residual > EXTRAPOLATE_MAX_RMS_PX.powi(2) * EXTRAPOLATE_POINTS as f64
-            || a.norm() < MIN_ACCELERATION_PX
+        let fit = ConstantAcceleration::fit(&recent)?;
+        if fit.residual > EXTRAPOLATE_MAX_RMS_PX.powi(2) * EXTRAPOLATE_POINTS as f64
+            || fit.acceleration().norm() < MIN_ACCELERATION_PX
         {
             return None;
         }
         let t = (frame - last) as f64;
-        let at = |c: Vector3<f64>| c[0] + c[1] * t + 0.5 * c[2] * t * t;
-        let p = Point2::new(at(cx), at(cy));
-        let v = Vector2::new(cx[1] + cx[2] * t, cy[1] + cy[2] * t);
+        let (p, v) = (fit.at(t), fit.velocity(t));
         (p.x.is_finite() && p.y.is_finite() && v.x.is_finite() && v.y.is_finite()).then_some((p, v))
     }
 
@@ -263,6 +242,60 @@ impl Swing {
         for (k, fit) in self.fit.iter_mut().enumerate() {
             *fit = fit_axis(runs.iter().map(|r| (r[0][k], r[1][k], r[2][k])));
         }
+    }
+}
+
+/// A constant acceleration `p(t) = c0 + c1 t + c2 t²` fitted per axis, by least squares, to
+/// timed points, and its summed squared residual (pixels²).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ConstantAcceleration {
+    x: Vector3<f64>,
+    y: Vector3<f64>,
+    pub residual: f64,
+}
+
+impl ConstantAcceleration {
+    /// The fit to `points` (time, position); `None` with fewer than 4 points or times that do
+    /// not determine it.
+    pub(crate) fn fit(points: &[(f64, Point2<f64>)]) -> Option<Self> {
+        if points.len() < 4 {
+            return None;
+        }
+        let row = |t: f64| Vector3::new(1.0, t, t * t);
+        let mut ata = Matrix3::zeros();
+        let (mut atx, mut aty) = (Vector3::zeros(), Vector3::zeros());
+        for &(t, p) in points {
+            let r = row(t);
+            ata += r * r.transpose();
+            atx += r * p.x;
+            aty += r * p.y;
+        }
+        let chol = ata.cholesky()?;
+        let (x, y) = (chol.solve(&atx), chol.solve(&aty));
+        let residual = points
+            .iter()
+            .map(|&(t, p)| (p.x - row(t).dot(&x)).powi(2) + (p.y - row(t).dot(&y)).powi(2))
+            .sum();
+        Some(Self { x, y, residual })
+    }
+
+    /// Position at time `t`.
+    pub(crate) fn at(&self, t: f64) -> Point2<f64> {
+        let row = Vector3::new(1.0, t, t * t);
+        Point2::new(row.dot(&self.x), row.dot(&self.y))
+    }
+
+    /// Velocity at time `t` (pixels per unit of time).
+    pub(crate) fn velocity(&self, t: f64) -> Vector2<f64> {
+        Vector2::new(
+            self.x[1] + 2.0 * self.x[2] * t,
+            self.y[1] + 2.0 * self.y[2] * t,
+        )
+    }
+
+    /// The acceleration (pixels per unit of time²).
+    pub(crate) fn acceleration(&self) -> Vector2<f64> {
+        2.0 * Vector2::new(self.x[2], self.y[2])
     }
 }
 

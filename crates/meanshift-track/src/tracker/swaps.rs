@@ -39,7 +39,7 @@
 //! line, and letting it replace the signature would make the other path look like its own.
 
 use super::*;
-use crate::swing::SwingLine;
+use crate::swing::{ConstantAcceleration, SwingLine};
 
 /// Frames of both tracks a swap is judged on (a third of a 1.5 Hz swing at 30 fps; 8 took
 /// two frames longer to undo a swap and lost 2 points on the tuning seeds' combined condition).
@@ -293,7 +293,7 @@ impl Tracker {
         }
         let joined = |b: &[(f64, Point2<f64>)], a: &[(f64, Point2<f64>)]| {
             let all: Vec<_> = b.iter().chain(a).copied().collect();
-            quadratic_residual(&all)
+            ConstantAcceleration::fit(&all).map(|f| f.residual)
         };
         let keep = joined(&bi, &ai)? + joined(&bj, &aj)?;
         let cross = joined(&bi, &aj)? + joined(&bj, &ai)?;
@@ -356,35 +356,6 @@ impl Tracker {
             std::mem::swap(&mut oa[f], &mut ob[f]);
         }
     }
-}
-
-/// The summed squared residual (pixels²) of the least-squares fit of a constant acceleration
-/// `p(t) = p0 + v t + a t²/2` to the timed points, per axis; `None` when fewer than 4 points
-/// or the times do not determine the fit.
-fn quadratic_residual(points: &[(f64, Point2<f64>)]) -> Option<f64> {
-    if points.len() < 4 {
-        return None;
-    }
-    let mut ata = nalgebra::Matrix3::<f64>::zeros();
-    let mut atx = nalgebra::Vector3::<f64>::zeros();
-    let mut aty = nalgebra::Vector3::<f64>::zeros();
-    for &(t, p) in points {
-        let row = nalgebra::Vector3::new(1.0, t, t * t);
-        ata += row * row.transpose();
-        atx += row * p.x;
-        aty += row * p.y;
-    }
-    let chol = ata.cholesky()?;
-    let (cx, cy) = (chol.solve(&atx), chol.solve(&aty));
-    Some(
-        points
-            .iter()
-            .map(|&(t, p)| {
-                let row = nalgebra::Vector3::new(1.0, t, t * t);
-                (p.x - row.dot(&cx)).powi(2) + (p.y - row.dot(&cy)).powi(2)
-            })
-            .sum(),
-    )
 }
 
 /// Whether the recent tracks `pi` and `pj` of two markers lie along each other's lines `sj`
