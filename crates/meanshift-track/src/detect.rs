@@ -473,6 +473,83 @@ impl Labeler {
             })
             .collect()
     }
+
+    /// The part of `blob` (from the last [`Labeler::blobs`] run on the same `weights` and
+    /// `rect`) under a disc of `radius_px`, placed by mean-shift with a flat disc kernel from
+    /// `start`: the disc moves to the weighted centroid of the blob's pixels within it until it
+    /// settles. Two markers of one look that touch or overlap make one blob, the union of
+    /// their discs, and each disc's centre is a fixed point of this (its disc holds its own
+    /// pixels, all of them): from a start near one marker, the part is that marker whole,
+    /// with no need to know where the other is (as [`Labeler::split`] does). From outward of
+    /// the marker one step comes back; toward the other disc each step keeps the share of
+    /// the offset that the other covers of the rim ahead (about 0.9 for discs overlapping by
+    /// a third), so the disc stops short of the centre by up to a pixel or two, at a place
+    /// where its rim's pixels balance, or where it started when the two overlap by more
+    /// than half (there the blob barely tells where the nearer one is). `None` when the disc
+    /// holds none of the blob's pixels.
+    pub(crate) fn disc_part(
+        &mut self,
+        weights: &[f32],
+        rect: PixelRect,
+        blob: &Blob,
+        start: Point2<f64>,
+        radius_px: f64,
+    ) -> Option<Blob> {
+        /// Most rounds (each moves the disc at least [`SETTLED_PX`], or is the last).
+        const ROUNDS: usize = 24;
+        const SETTLED_PX: f64 = 0.02;
+        let area = self.area;
+        if weights.len() != rect.area() as usize
+            || !(radius_px.is_finite()
+                && radius_px > 0.0
+                && start.x.is_finite()
+                && start.y.is_finite())
+        {
+            return None;
+        }
+        let stride = rect.width as usize;
+        let w = area.width as usize;
+        let r2 = radius_px * radius_px;
+        let reach = radius_px.ceil() as i32 + 1;
+        let mut c = start;
+        for round in 0..ROUNDS {
+            let disc = PixelRect::new(
+                c.x.floor() as i32 - reach,
+                c.y.floor() as i32 - reach,
+                2 * reach + 1,
+                2 * reach + 1,
+            );
+            let box_ = blob.bounds.intersect(&area).intersect(&disc);
+            let mut sums = [0.0f64; 7];
+            let mut bounds = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
+            for y in box_.y..box_.bottom() as i32 {
+                let dy = f64::from(y) - c.y;
+                for x in box_.x..box_.right() as i32 {
+                    let dx = f64::from(x) - c.x;
+                    if dx * dx + dy * dy > r2 {
+                        continue;
+                    }
+                    let l = self.labels[(y - area.y) as usize * w + (x - area.x) as usize];
+                    if l == NONE || find(&mut self.parent, l) != blob.label {
+                        continue;
+                    }
+                    let v =
+                        f64::from(weights[(y - rect.y) as usize * stride + (x - rect.x) as usize]);
+                    accumulate(&mut sums, &mut bounds, x, y, v);
+                }
+            }
+            if sums[1] <= 0.0 {
+                return None;
+            }
+            let part = Blob::from_sums(&sums, &bounds, blob.label);
+            let step = part.centroid - c;
+            if step.norm() < SETTLED_PX || round + 1 == ROUNDS {
+                return Some(part);
+            }
+            c = part.centroid;
+        }
+        None
+    }
 }
 
 #[cfg(test)]
@@ -605,6 +682,66 @@ mod tests {
         }
         out.sort_by(|a, b| b.1.total_cmp(&a.1));
         out
+    }
+
+    #[test]
+    fn a_disc_in_a_blob_of_two_overlapping_discs_settles_on_either_whole_disc() {
+        // Two discs of radius 7 px whose centres are 10 px apart make one blob, whose
+        // centroid lies between them; the disc kernel's parts are the discs themselves.
+        let rect = PixelRect::new(0, 0, 48, 40);
+        let (a, b) = (Point2::new(18.0, 20.0), Point2::new(26.0, 14.0));
+        let radius = 7.0;
+        let mut weights = vec![0.0f32; rect.area() as usize];
+        for y in 0..40 {
+            for x in 0..48 {
+                let p = Point2::new(f64::from(x), f64::from(y));
+                if (p - a).norm() <= radius || (p - b).norm() <= radius {
+                    weights[(y * 48 + x) as usize] = 200.0;
+                }
+            }
+        }
+        let mut l = Labeler::default();
+        let blobs = l.blobs(&weights, rect, rect, 50.0, 2, 1);
+        assert_eq!(blobs.len(), 1, "{blobs:?}");
+        let between = (blobs[0].centroid - a).norm();
+        assert!(
+            between > 3.0,
+            "the blob's centroid lies {between} px from a"
+        );
+        // From outward of either disc, back onto it; from a start toward the other disc, the
+        // pull back is weaker but the disc does not slide onto the other.
+        for (centre, start, within) in [
+            (a, Point2::new(16.4, 21.2), 0.3),
+            (b, Point2::new(27.6, 12.8), 0.3),
+            (a, Point2::new(19.2, 19.1), 1.5),
+            (b, Point2::new(24.8, 14.9), 1.5),
+        ] {
+            let part = l
+                .disc_part(&weights, rect, &blobs[0], start, radius)
+                .unwrap();
+            let off = (part.centroid - centre).norm();
+            assert!(
+                off < within,
+                "disc from {start:?}: {:?}, {off} px off",
+                part.centroid
+            );
+            // The whole disc, every pixel of it: about pi r^2.
+            let disc_pixels = std::f64::consts::PI * radius * radius;
+            assert!(
+                (part.pixels as f64 - disc_pixels).abs() < 0.1 * disc_pixels,
+                "{part:?}"
+            );
+        }
+        // Nothing of the blob under the disc, or a radius that is no radius: no part.
+        assert!(
+            l.disc_part(&weights, rect, &blobs[0], Point2::new(45.0, 37.0), 2.0)
+                .is_none()
+        );
+        assert!(
+            l.disc_part(&weights, rect, &blobs[0], a, f64::NAN)
+                .is_none()
+        );
+        assert!(l.disc_part(&weights, rect, &blobs[0], a, 0.0).is_none());
     }
 
     #[test]

@@ -365,7 +365,9 @@ pub(super) fn blob_confidence(blob: &Blob, r: &Reference) -> f64 {
 /// [`MarkerState::look_alikes_away`]), when the part nearer to `own` lies within
 /// [`OWN_PART_WINDOWS`] windows of it: a marker at rest beside a look-alike of its
 /// colour makes one blob with it when the two touch, and its candidate is its own part, not
-/// the pair's centroid.
+/// the pair's centroid. A blob that may be the marker and another of its look touching
+/// (`partners`: where those were found last and are predicted) also gives the marker's disc
+/// within it from `own` ([`pair_part`]).
 pub(super) fn candidates_in(
     region: &mut Region,
     labeler: &mut Labeler,
@@ -373,6 +375,7 @@ pub(super) fn candidates_in(
     own: Option<Point2<f64>>,
     others: &[Point2<f64>],
     look_alikes: &[Point2<f64>],
+    partners: &[Point2<f64>],
 ) -> Vec<Measured> {
     let blobs = labeler.blobs(
         &region.weights,
@@ -436,6 +439,9 @@ pub(super) fn candidates_in(
             steady.centroid =
                 labeler.edge_centroid(&region.weights, region.rect, b, window, pieces);
             out.push(measured_at(region, m, &steady));
+            if let Some(part) = own.and_then(|p| pair_part(labeler, region, m, b, p, partners)) {
+                out.push(measured_at(region, m, &part));
+            }
         }
         // Fragments closer than the marker's width whose union is a whole marker.
         for c in &blobs[k + 1..] {
@@ -468,6 +474,66 @@ fn own_part(
         .next()
         .filter(|p| p.pixels > 0 && plausible(p, &m.reference))
 }
+
+/// A blob holds two markers of one look, touching or overlapping, rather than one marker's
+/// motion streak, when it has at least this many times the marker's pixels ...
+const PAIR_MIN_PIXELS: f64 = 1.4;
+/// ... no wider than a marker (two discs side by side are one disc wide; a larger
+/// look-alike is wider) ...
+const PAIR_MAX_WIDTH: f64 = 1.25;
+/// ... at its full colour: mean weight at least this share of the marker's (a streak is
+/// paler, its colour spread over the path).
+const PAIR_MIN_COLOUR: f64 = 0.8;
+
+/// Where `blob` may be two markers of one look that touch or overlap (more pixels than one
+/// marker, at its full colour), the marker's disc within it from its prediction `own`
+/// ([`Labeler::disc_part`]), when that is plausibly the marker and not the whole blob.
+fn pair_part(
+    labeler: &mut Labeler,
+    region: &Region,
+    m: &MarkerState,
+    blob: &Blob,
+    own: Point2<f64>,
+    partners: &[Point2<f64>],
+) -> Option<Blob> {
+    let r = &m.reference;
+    if partners.is_empty() {
+        return None;
+    }
+    let pair = blob.pixels as f64 >= PAIR_MIN_PIXELS * r.pixels
+        && blob.width_px() <= PAIR_MAX_WIDTH * r.width_px
+        && blob.mass / blob.pixels as f64 >= PAIR_MIN_COLOUR * r.pixel_weight;
+    if !pair {
+        return None;
+    }
+    let part = labeler.disc_part(&region.weights, region.rect, blob, own, 0.5 * r.width_px)?;
+    // The rest of the blob is the other marker: near where one was found or is predicted
+    // (the marker leaving a look-alike it touched leaves a blob with no partner). The disc
+    // is the marker's from near its prediction (not a look-alike the disc slid onto).
+    let rest_mass = blob.mass - part.mass;
+    if rest_mass <= 0.0 || (part.centroid - own).norm() > PAIR_MAX_SHIFT_WINDOWS * window_px(m) {
+        return None;
+    }
+    let rest = Point2::from(
+        (blob.centroid.coords * blob.mass - part.centroid.coords * part.mass) / rest_mass,
+    );
+    let reach = PAIR_PARTNER_WINDOWS * window_px(m);
+    let partnered = partners.iter().any(|p| (p - rest).norm() <= reach);
+    (partnered
+        && (part.centroid - blob.centroid).norm() >= PAIR_MIN_SHIFT_PX
+        && plausible(&part, r))
+    .then_some(part)
+}
+
+/// The rest of a blob of two markers lies within this many windows of where the other
+/// marker was found last or is predicted.
+const PAIR_PARTNER_WINDOWS: f64 = 2.0;
+
+/// The disc settles at most this many windows from the marker's prediction.
+const PAIR_MAX_SHIFT_WINDOWS: f64 = 0.5;
+
+/// Least distance from the blob's centroid for the disc's part to be a candidate of its own.
+const PAIR_MIN_SHIFT_PX: f64 = 1.0;
 
 /// A measurement at a blob: its centroid, the window there and its confidence.
 pub(super) fn measured_at(region: &mut Region, m: &MarkerState, blob: &Blob) -> Measured {

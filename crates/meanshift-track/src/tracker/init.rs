@@ -132,11 +132,18 @@ impl Tracker {
             }
         } else if config.recovery {
             let near = |c: &Measured| (c.center - mode.center).norm();
-            let nearest =
-                candidates_in(&mut self.region, &mut self.labeler, &state, None, &[], &[])
-                    .into_iter()
-                    .filter(|c| c.holds.intersect(&w).area() > 0)
-                    .min_by(|a, b| near(a).total_cmp(&near(b)));
+            let nearest = candidates_in(
+                &mut self.region,
+                &mut self.labeler,
+                &state,
+                None,
+                &[],
+                &[],
+                &[],
+            )
+            .into_iter()
+            .filter(|c| c.holds.intersect(&w).area() > 0)
+            .min_by(|a, b| near(a).total_cmp(&near(b)));
             match nearest {
                 // A blob whose centre mean-shift in the window does not come near is the
                 // marker merged with something touching it (a look-alike beside it): the
@@ -265,8 +272,15 @@ impl Tracker {
                 (Some(floor_between(core, median, mask)), None)
             }
             _ => {
-                let blobs =
-                    candidates_in(&mut self.region, &mut self.labeler, state, None, &[], &[]);
+                let blobs = candidates_in(
+                    &mut self.region,
+                    &mut self.labeler,
+                    state,
+                    None,
+                    &[],
+                    &[],
+                    &[],
+                );
                 (None, Some(blobs))
             }
         }
@@ -316,7 +330,7 @@ impl Tracker {
             }
             let blobs = found.unwrap_or_else(|| {
                 weigh_first_frame(&mut self.region, &self.config, m, frame, depth);
-                candidates_in(&mut self.region, &mut self.labeler, m, None, &[], &[])
+                candidates_in(&mut self.region, &mut self.labeler, m, None, &[], &[], &[])
             });
             for c in blobs {
                 if centres

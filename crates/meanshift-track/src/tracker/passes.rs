@@ -66,6 +66,7 @@ impl Tracker {
                 Some(pred),
                 &others,
                 &look_alikes,
+                &partners_of(&self.markers, i),
             );
             let image = (self.width, self.height);
             found
@@ -393,6 +394,7 @@ impl Tracker {
                     Some(gate.center),
                     &others,
                     &look_alikes,
+                    &partners_of(&self.markers, i),
                 )
                 .into_iter()
                 .take(MAX_CANDIDATES),

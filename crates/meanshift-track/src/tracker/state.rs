@@ -459,6 +459,20 @@ pub(super) fn crowded(markers: &[MarkerState], i: usize) -> bool {
     })
 }
 
+/// Where the markers of marker `i`'s look within [`CROWD_WINDOWS`] of it were found last
+/// and are predicted: the places a blob of two touching markers may hold `i`'s partner.
+pub(super) fn partners_of(markers: &[MarkerState], i: usize) -> Vec<Point2<f64>> {
+    let m = &markers[i];
+    let reach = CROWD_WINDOWS * window_px(m);
+    markers
+        .iter()
+        .enumerate()
+        .filter(|&(j, o)| j != i && same_look(m, o))
+        .flat_map(|(_, o)| [o.last_center, o.filter.position])
+        .filter(|p| (p - m.filter.position).norm() < reach || (p - m.last_center).norm() < reach)
+        .collect()
+}
+
 /// Window size (the larger side) of a marker, pixels.
 pub(super) fn window_px(m: &MarkerState) -> f64 {
     f64::from(m.size.0.max(m.size.1))

@@ -159,6 +159,51 @@ fn two_markers_of_one_colour_passing_partly_in_front_of_each_other_are_both_foll
     assert!(merged >= 4, "the discs touch on {merged} frames");
 }
 
+#[test]
+fn a_marker_touched_by_a_lost_one_of_its_colour_is_measured_on_its_own_disc() {
+    // A moves toward B, is hidden for four frames (its track coasts, then it is looked for),
+    // and comes to rest 10 px from B, each 14 px wide: one blob, which B's track alone
+    // claims (A was not found in the frame before, so nothing shares it). B is measured on
+    // its own disc within the blob, not at the pair's centroid 5 px toward A.
+    let b = (70.0, 32.0);
+    let a_at = |k: usize| -> Option<(f64, f64)> {
+        match k {
+            0..=5 => Some((20.0 + 3.0 * k as f64, 32.0)),
+            6..=9 => None,
+            _ => Some((60.0, 32.0)),
+        }
+    };
+    let frame = |k: usize| {
+        let mut discs = vec![(b.0, b.1, 7.0, MARKER_RGB)];
+        if let Some(a) = a_at(k) {
+            discs.push((a.0, a.1, 7.0, MARKER_RGB));
+        }
+        disc_frame(&discs)
+    };
+    let inits = [init("A", 13, 25, 15), init("B", 63, 25, 15)];
+    let mut t = Tracker::new(TrackerConfig::default(), &frame(0), None, &inits).expect("valid");
+    let frames = 20;
+    for k in 1..frames {
+        t.update(&frame(k), None).expect("same size");
+    }
+    for k in 10..frames {
+        let o = t.tracks()[1].observations[k];
+        let off = o.center.map(|c| (c - Point2::new(b.0, b.1)).norm());
+        assert!(
+            o.status == TrackStatus::Tracked && off.is_some_and(|d| d <= 1.0),
+            "B, frame {k}: {o:?}"
+        );
+        // A is never reported found on B.
+        let oa = t.tracks()[0].observations[k];
+        if let (Some(c), true) = (oa.center, oa.status.found()) {
+            assert!(
+                (c - Point2::new(b.0, b.1)).norm() > 5.0,
+                "A on B, frame {k}: {oa:?}"
+            );
+        }
+    }
+}
+
 /// A row of look-alike targets (white squares with a black dot on a rod, 40 px apart)
 /// shifted by `offset`; the one at x = 100 sits on a hub (a dark post above and below it).
 fn target_row(offset: f64) -> RgbImage {
