@@ -251,6 +251,9 @@ pub(crate) struct PixelFilter<'a> {
     /// depth do not count.
     pub(crate) depth: Option<(f64, f64, DepthView<'a>)>,
     pub(crate) masked: &'a [PixelRect],
+    /// Rectangles in which only pixels at least this saturated count (8-bit levels): a
+    /// paler look-alike of a marker that the marker may be passing over.
+    pub(crate) paler: &'a [(PixelRect, u8)],
     /// Streak weights for a moving marker (colour models), the greater of the two counts.
     pub(crate) streak: Option<Streak<'a>>,
 }
@@ -266,12 +269,16 @@ impl PixelFilter<'_> {
                 .is_some_and(|(g, dm, d)| d.at(x, y).is_some_and(|v| (v - dm).abs() > g))
     }
 
-    /// Weight 0 and no bin for the pixels of row `y` of `sub` (`weights`, `bins`: that row)
-    /// that the filter rejects: those in a masked rectangle, and those beyond the depth gate.
+    /// Weight 0 and no bin for the pixels of row `y` of `sub` (`weights`, `bins`: that row;
+    /// `pixels`: its RGB) that the filter rejects: those in a masked rectangle, those under
+    /// the saturation floor of a paler look-alike's rectangle, and those beyond the depth
+    /// gate. (The sparse sampler's [`PixelFilter::rejects`] leaves the paler rectangles to
+    /// this: a sample it keeps only has its cells weighed in full.)
     fn reject_in_row(
         &self,
         sub: PixelRect,
         y: i32,
+        pixels: &[u8],
         weights: &mut [f32],
         mut bins: Option<&mut [u32]>,
     ) {
@@ -290,6 +297,19 @@ impl PixelFilter<'_> {
             let to = (m.right() - i64::from(sub.x)).clamp(0, width as i64) as usize;
             if from < to {
                 reject(from, to);
+            }
+        }
+        for &(m, floor) in self.paler {
+            if i64::from(y) < i64::from(m.y) || i64::from(y) >= m.bottom() {
+                continue;
+            }
+            let from = (i64::from(m.x) - i64::from(sub.x)).clamp(0, width as i64) as usize;
+            let to = (m.right() - i64::from(sub.x)).clamp(0, width as i64) as usize;
+            for i in from..to {
+                let p = &pixels[3 * i..3 * i + 3];
+                if crate::hsv::rgb_to_hsv([p[0], p[1], p[2]])[1] < floor {
+                    reject(i, i + 1);
+                }
             }
         }
         if let Some((g, dm, d)) = self.depth {
@@ -788,7 +808,9 @@ impl Region {
                 let at = (y - rect.y) as usize * rect.width as usize + (sub.x - rect.x) as usize;
                 let out = &mut weights[at..at + width];
                 let bins_out = kernel.then(|| &mut bins[at..at + width]);
-                filter.reject_in_row(sub, y, out, bins_out);
+                let row = (y - y0) as usize * width * 3;
+                let pixels = &block.pixels[row..row + width * 3];
+                filter.reject_in_row(sub, y, pixels, out, bins_out);
             }
             y0 = y1;
         }
@@ -1046,11 +1068,13 @@ mod tests {
                 let open = PixelFilter {
                     depth: None,
                     masked: &[],
+                    paler: &[],
                     streak: Some(streak),
                 };
                 let gated = PixelFilter {
                     depth: Some((0.15, 1.1, depth)),
                     masked: &masked,
+                    paler: &[],
                     streak: Some(streak),
                 };
                 let (mut all, mut some) = (Region::default(), Region::default());
@@ -1172,6 +1196,7 @@ mod tests {
         let filter = PixelFilter {
             depth: None,
             masked: &[],
+            paler: &[],
             streak: None,
         };
         let rect = PixelRect::new(0, 0, 64, 48);
@@ -1276,6 +1301,7 @@ mod tests {
         let filter = PixelFilter {
             depth: None,
             masked,
+            paler: &[],
             streak: Some(Streak {
                 previous,
                 colour: [210.0, 30.0, 25.0],

@@ -76,6 +76,7 @@ pub(super) fn fill(
     depth: Option<&DepthView<'_>>,
     rect: PixelRect,
     masked: &[PixelRect],
+    paler: &[(PixelRect, u8)],
     sparse: bool,
 ) {
     let gate = match (config.depth_gate_m, m.depth_m, depth) {
@@ -94,6 +95,7 @@ pub(super) fn fill(
     let filter = PixelFilter {
         depth: gate,
         masked,
+        paler,
         streak,
     };
     let (w, h) = m.size;
@@ -286,7 +288,7 @@ pub(super) fn core_saturation(
 /// A paler look-alike touching a colour marker, learnt as one blob with it on the first
 /// frame (a reddish-brown knot beside a red marker): the median saturation of the pixels
 /// of `blob` (its box in `region`, weights at or above `threshold`) that are more than
-/// [`PALER_LEVELS`] under the marker's core saturation `core`, when they are at least
+/// [`TOUCHING_PALER_LEVELS`] under the marker's core saturation `core`, when they are at least
 /// [`PALER_SHARE`] of the others (the marker's own) and centred at least
 /// [`PALER_OFFSET_WINDOWS`] of a window (`window_px`) off them: a marker's rim, blended with
 /// the background, is paler too, but a few pixels all round it.
@@ -299,7 +301,7 @@ pub(super) fn paler_part(
     window_px: f64,
 ) -> Option<f64> {
     let b = blob.intersect(&region.rect);
-    let limit = core - PALER_LEVELS;
+    let limit = core - TOUCHING_PALER_LEVELS;
     let (mut own, mut paler) = ((0.0, 0.0, 0usize), (0.0, 0.0, Vec::new()));
     for y in b.y..b.bottom() as i32 {
         for x in b.x..b.right() as i32 {

@@ -350,6 +350,17 @@ const CORE_WINDOWS: f64 = 0.2;
 /// than the marker (noise and JPEG move a marker's pixels by a few levels; a reddish-brown
 /// look-alike beside a red marker is 40–60 paler).
 const PALER_LEVELS: f64 = 36.0;
+/// Levels under a marker's core saturation from which a pixel of its first blob is paler
+/// than the marker, for a look-alike touching it there ([`paler_part`]), and from which a
+/// static look-alike of the first frame is kept out of the marker's weights by a saturation
+/// floor in its box (`MarkerState::paler_boxes`). Lower than [`PALER_LEVELS`], which raises
+/// the floor over the whole frame: here the paler part must also lie off the marker's
+/// centre, or the floor holds only in a look-alike's box, so a blurred marker, paler by a
+/// third, loses only what lies over the look-alike. The stress scenes' reddish-brown
+/// look-alikes are 30–45 levels paler than their red markers (178–187 against 200–230);
+/// a marker's own pixels away from its rim stay within about 15 of its core (crossing seed
+/// 6028's first frame: 199–225 about a core of 215).
+const TOUCHING_PALER_LEVELS: f64 = 25.0;
 /// Paler pixels of a marker's first blob, as a share of its own, that make a touching
 /// look-alike rather than a rim (a marker's rim on the stress sequences is 1–20 % of its
 /// pixels).
@@ -417,6 +428,9 @@ struct Distractor {
     first_frame: usize,
     /// The frame it was seen at this place the second time (static since), if it was.
     static_frame: Option<usize>,
+    /// Its core saturation (8-bit levels), where it was measured (look-alikes of the first
+    /// frame).
+    saturation: Option<f64>,
 }
 
 #[derive(Debug, Clone)]
@@ -468,6 +482,9 @@ struct MarkerState {
     gate_var: f64,
     /// Look-alikes this marker turned down.
     distractors: Vec<Distractor>,
+    /// The marker's core saturation on the first frame (colour markers; see
+    /// `core_saturation`).
+    core_saturation: Option<f64>,
     /// Mean colour (RGB) of the marker's pixels on the first frame.
     colour: [f32; 3],
 }

@@ -39,6 +39,7 @@ impl Tracker {
                 depth,
                 region,
                 &masks,
+                &m.paler_boxes(region, pred),
                 false,
             );
             let mode = self.region.locate(
@@ -380,6 +381,7 @@ impl Tracker {
                 depth,
                 region,
                 &masks,
+                &m.paler_boxes(region, gate.center),
                 sparse,
             );
             cluttered = self.region.cluttered;

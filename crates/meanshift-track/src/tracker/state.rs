@@ -42,6 +42,7 @@ impl MarkerState {
             confidence_var: 0.0,
             gate_var: 1.0,
             distractors: Vec::new(),
+            core_saturation: None,
             colour: [0.0; 3],
             template: None,
         }
@@ -197,6 +198,7 @@ impl MarkerState {
     }
 
     /// True when `at` is on a static look-alike of this marker.
+    #[cfg(test)]
     pub(super) fn on_distractor(&self, at: Point2<f64>) -> bool {
         let side = window_px(self);
         self.distractors
@@ -204,17 +206,37 @@ impl MarkerState {
             .any(|d| d.seen >= 2 && (d.at - at).norm() < (DISTRACTOR_RADIUS * side).max(2.0))
     }
 
-    /// True when measurement `q` is a static look-alike of this marker: centred on one (see
-    /// [`MarkerState::on_distractor`]), or a part of one, its blob's box inside the
+    /// True when measurement `q` is a static look-alike of this marker: centred on one
+    /// (within [`DISTRACTOR_RADIUS`] windows), or a part of one, its blob's box inside the
     /// look-alike's and at least [`LOOK_ALIKE_PART_SHARE`] of it (a look-alike that a twig
-    /// cuts in two is seen as either part, each centred elsewhere).
+    /// cuts in two is seen as either part, each centred elsewhere). A look-alike paler than
+    /// the marker is not the measurement of a marker found in the last frame and moving
+    /// (faster than [`RESTING_WINDOWS_PER_FRAME`]): in its box only pixels more saturated
+    /// than it count ([`MarkerState::paler_boxes`]), so what is measured there is the marker
+    /// passing over it. For a marker being looked for, or a track standing still, it still
+    /// is: noise, flicker and JPEG lift a few of the look-alike's pixels over the floor, a
+    /// weak fragment that must not be taken for the marker.
     pub(super) fn on_look_alike(&self, q: &Measured) -> bool {
-        self.on_distractor(q.center)
-            || self.distractors.iter().any(|d| {
-                d.seen >= 2
-                    && q.holds.intersect(&d.bounds) == q.holds
-                    && q.holds.area() as f64 >= LOOK_ALIKE_PART_SHARE * d.bounds.area() as f64
+        let near = (DISTRACTOR_RADIUS * window_px(self)).max(2.0);
+        let passing = self.last_status.found()
+            && self.filter.velocity.norm() > RESTING_WINDOWS_PER_FRAME * window_px(self);
+        self.distractors
+            .iter()
+            .filter(|d| d.seen >= 2 && !(passing && self.paler_floor(d).is_some()))
+            .any(|d| {
+                (d.at - q.center).norm() < near
+                    || (q.holds.intersect(&d.bounds) == q.holds
+                        && q.holds.area() as f64 >= LOOK_ALIKE_PART_SHARE * d.bounds.area() as f64)
             })
+    }
+
+    /// The saturation floor (8-bit levels) that keeps look-alike `d` out of this marker's
+    /// weights in its box: halfway between the two cores, when `d` is paler by at least
+    /// [`TOUCHING_PALER_LEVELS`] (both measured on the first frame; `None` otherwise).
+    fn paler_floor(&self, d: &Distractor) -> Option<u8> {
+        let (core, s) = (self.core_saturation?, d.saturation?);
+        (core - s >= TOUCHING_PALER_LEVELS)
+            .then(|| (0.5 * (core + s)).round().clamp(0.0, 255.0) as u8)
     }
 
     /// The places of this marker's static look-alikes more than half a window from `pred`:
@@ -230,12 +252,16 @@ impl MarkerState {
         self.distractors
             .iter()
             .filter(|d| d.seen >= 2 && (d.at - pred).norm() > half)
+            // A paler one is kept out of the weights by its floor: its blob is not the pair.
+            .filter(|d| self.paler_floor(d).is_none())
             .map(|d| d.at)
             .collect()
     }
 
     /// The boxes of this marker's static look-alikes in `region` that it is not predicted to
     /// be on: their pixels do not count, so that a marker passing one is not pulled onto it.
+    /// Where it is predicted on a paler one, that one's box has a saturation floor instead
+    /// ([`MarkerState::paler_boxes`]).
     pub(super) fn static_masks(&self, region: PixelRect, pred: Point2<f64>) -> Vec<PixelRect> {
         let (hw, hh) = (self.size.0 / 4, self.size.1 / 4);
         self.distractors
@@ -249,6 +275,23 @@ impl MarkerState {
                     && pred.y < b.bottom() as f64)
             })
             .map(|d| d.bounds)
+            .collect()
+    }
+
+    /// The boxes of this marker's static look-alikes in `region` that it is predicted on
+    /// (those [`MarkerState::static_masks`] leaves) and that are paler than the marker by at
+    /// least [`TOUCHING_PALER_LEVELS`], each with a saturation floor halfway between the two
+    /// ([`MarkerState::paler_floor`]): in them only the marker's own pixels count, so that a
+    /// marker passing over a paler look-alike of its hue is measured on itself, not on the
+    /// pair. Elsewhere the box is masked whole: under flicker and JPEG some of a look-alike's
+    /// pixels rise over the floor, and a track thrown near it must not settle on them.
+    pub(super) fn paler_boxes(&self, region: PixelRect, pred: Point2<f64>) -> Vec<(PixelRect, u8)> {
+        let masked = self.static_masks(region, pred);
+        self.distractors
+            .iter()
+            .filter(|d| d.seen >= 2 && d.bounds.intersect(&region).area() > 0)
+            .filter(|d| !masked.contains(&d.bounds))
+            .filter_map(|d| self.paler_floor(d).map(|floor| (d.bounds, floor)))
             .collect()
     }
 
@@ -508,6 +551,7 @@ pub(super) fn remember_distractor(
                     seen: 1,
                     first_frame: frame,
                     static_frame: None,
+                    saturation: None,
                 };
             }
         }
@@ -526,6 +570,7 @@ pub(super) fn remember_distractor(
         seen: 1,
         first_frame: frame,
         static_frame: None,
+        saturation: None,
     });
 }
 
