@@ -463,35 +463,39 @@ mod tests {
         })
     }
 
-    #[test]
-    fn a_paler_look_alike_touching_the_marker_is_kept_out_of_it() -> Result<()> {
+    /// Marker "A" learnt from its first `window` on `frame`.
+    fn marker_a(frame: &RgbImage, window: PixelRect) -> Result<Tracker> {
         let init = MarkerInit {
             id: "A".into(),
-            window: PixelRect::new(32, 24, 17, 17),
+            window,
         };
-        let mut t = Tracker::new(
-            TrackerConfig::default(),
-            &red_beside_brown(40.0),
-            None,
-            &[init],
-        )?;
-        // It starts on the red disc, and its blob is the red disc's (about 150 pixels), not
-        // the pair's.
+        Tracker::new(TrackerConfig::default(), frame, None, &[init])
+    }
+
+    /// The red disc of `frame_at(x)` starts on itself at x = 40 and, pulled 3 px a frame
+    /// away from what touches it for 6 frames, is followed, not left on the look-alike.
+    fn follows_the_pull(t: &mut Tracker, frame_at: impl Fn(f64) -> RgbImage) -> Result<()> {
         let start = t.tracks[0].observations[0]
             .center
             .unwrap_or(Point2::origin());
         assert!((start - Point2::new(40.0, 32.0)).norm() < 1.0, "{start}");
-        let pixels = t.markers[0].reference.pixels;
-        assert!((120.0..=190.0).contains(&pixels), "{pixels}");
-        // Pulled away from the look-alike, it is followed, not left on the look-alike.
         for step in 1..=6 {
-            t.update(&red_beside_brown(40.0 - 3.0 * f64::from(step)), None)?;
+            t.update(&frame_at(40.0 - 3.0 * f64::from(step)), None)?;
         }
         let last = t.tracks[0].observations[6];
-        let at = last.center.unwrap_or(Point2::origin());
-        assert!((at - Point2::new(22.0, 32.0)).norm() < 1.5, "{at}");
+        let end = last.center.unwrap_or(Point2::origin());
+        assert!((end - Point2::new(22.0, 32.0)).norm() < 1.5, "{end}");
         assert_eq!(last.status, TrackStatus::Tracked);
         Ok(())
+    }
+
+    #[test]
+    fn a_paler_look_alike_touching_the_marker_is_kept_out_of_it() -> Result<()> {
+        let mut t = marker_a(&red_beside_brown(40.0), PixelRect::new(32, 24, 17, 17))?;
+        // Its blob is the red disc's (about 150 pixels), not the pair's.
+        let pixels = t.markers[0].reference.pixels;
+        assert!((120.0..=190.0).contains(&pixels), "{pixels}");
+        follows_the_pull(&mut t, red_beside_brown)
     }
 
     /// A look-alike only about 30 levels paler than the marker (saturation 193 against
@@ -500,32 +504,9 @@ mod tests {
     /// marker would start 2 px toward it and stay on it when pulled away.
     #[test]
     fn a_slightly_paler_look_alike_behind_the_marker_is_kept_out_of_it() -> Result<()> {
-        let (look, at) = ([185, 60, 45], Point2::new(44.0, 36.0));
-        let init = MarkerInit {
-            id: "A".into(),
-            window: PixelRect::new(33, 25, 15, 15),
-        };
-        let mut t = Tracker::new(
-            TrackerConfig::default(),
-            &red_before(40.0, look, at, 7.0),
-            None,
-            &[init],
-        )?;
-        let start = t.tracks[0].observations[0]
-            .center
-            .unwrap_or(Point2::origin());
-        assert!((start - Point2::new(40.0, 32.0)).norm() < 1.0, "{start}");
-        for step in 1..=6 {
-            t.update(
-                &red_before(40.0 - 3.0 * f64::from(step), look, at, 7.0),
-                None,
-            )?;
-        }
-        let last = t.tracks[0].observations[6];
-        let end = last.center.unwrap_or(Point2::origin());
-        assert!((end - Point2::new(22.0, 32.0)).norm() < 1.5, "{end}");
-        assert_eq!(last.status, TrackStatus::Tracked);
-        Ok(())
+        let frame_at = |x| red_before(x, [185, 60, 45], Point2::new(44.0, 36.0), 7.0);
+        let mut t = marker_a(&frame_at(40.0), PixelRect::new(33, 25, 15, 15))?;
+        follows_the_pull(&mut t, frame_at)
     }
 
     /// A reddish-brown look-alike (saturation 178 against the red's 225, hue 4, in a bin of
@@ -536,27 +517,33 @@ mod tests {
     #[test]
     fn a_marker_passing_over_a_paler_look_alike_is_measured_on_itself() -> Result<()> {
         let (look, at) = ([150, 60, 45], Point2::new(62.0, 35.0));
-        let init = MarkerInit {
-            id: "A".into(),
-            window: PixelRect::new(17, 25, 15, 15),
-        };
-        let mut t = Tracker::new(
-            TrackerConfig::default(),
+        let mut t = marker_a(
             &red_before(24.0, look, at, 9.0),
-            None,
-            &[init],
+            PixelRect::new(17, 25, 15, 15),
         )?;
         // 4 px a frame, over the quarter window a frame of a marker at rest: passing.
         let path: Vec<f64> = (1..=16).map(|k| 24.0 + 4.0 * f64::from(k)).collect();
-        for &x in &path {
-            t.update(&red_before(x, look, at, 9.0), None)?;
+        follows_the_path(&mut t, &path, 32.0, 1.5, |x| red_before(x, look, at, 9.0))
+    }
+
+    /// Marker 0 of `t`, moved along x through `path` at height `y` (`frame_at(x)`), is
+    /// `tracked` within `tolerance_px` of the marker on every frame.
+    fn follows_the_path(
+        t: &mut Tracker,
+        path: &[f64],
+        y: f64,
+        tolerance_px: f64,
+        frame_at: impl Fn(f64) -> RgbImage,
+    ) -> Result<()> {
+        for &x in path {
+            t.update(&frame_at(x), None)?;
         }
         for (k, &x) in path.iter().enumerate() {
             let o = t.tracks[0].observations[k + 1];
             let c = o.center.unwrap_or(Point2::origin());
             assert!(
-                (c - Point2::new(x, 32.0)).norm() < 1.5 && o.status == TrackStatus::Tracked,
-                "frame {}: {c} {:?} for ({x}, 32)",
+                (c - Point2::new(x, y)).norm() < tolerance_px && o.status == TrackStatus::Tracked,
+                "frame {}: {c} {:?} for ({x}, {y})",
                 k + 1,
                 o.status
             );
@@ -586,32 +573,10 @@ mod tests {
 
     #[test]
     fn a_marker_swung_onto_bark_of_its_hue_is_measured_on_itself() -> Result<()> {
-        let init = MarkerInit {
-            id: "A".into(),
-            window: PixelRect::new(32, 32, 17, 17),
-        };
-        let mut t = Tracker::new(
-            TrackerConfig::default(),
-            &red_over_bark(40.0),
-            None,
-            &[init],
-        )?;
+        let mut t = marker_a(&red_over_bark(40.0), PixelRect::new(32, 32, 17, 17))?;
         // Onto the bark and across it, 4 px a frame: on the bark the hue model weighs the
         // bark as the marker, and the marker's blob would be the whole band.
         let path: Vec<f64> = (1..=20).map(|k| 40.0 + 4.0 * f64::from(k)).collect();
-        for &x in &path {
-            t.update(&red_over_bark(x), None)?;
-        }
-        for (k, &x) in path.iter().enumerate() {
-            let o = t.tracks[0].observations[k + 1];
-            let at = o.center.unwrap_or(Point2::origin());
-            assert!(
-                (at - Point2::new(x, 40.0)).norm() < 1.0 && o.status == TrackStatus::Tracked,
-                "frame {}: {at} {:?} for ({x}, 40)",
-                k + 1,
-                o.status
-            );
-        }
-        Ok(())
+        follows_the_path(&mut t, &path, 40.0, 1.0, red_over_bark)
     }
 }

@@ -39,7 +39,7 @@ impl Tracker {
                 depth,
                 region,
                 &masks,
-                &m.paler_boxes(region, pred),
+                &m.paler_boxes(region, &masks),
                 false,
             );
             let mode = self.region.locate(
@@ -381,7 +381,7 @@ impl Tracker {
                 depth,
                 region,
                 &masks,
-                &m.paler_boxes(region, gate.center),
+                &m.paler_boxes(region, &masks),
                 sparse,
             );
             cluttered = self.region.cluttered;

@@ -279,14 +279,17 @@ impl MarkerState {
     }
 
     /// The boxes of this marker's static look-alikes in `region` that it is predicted on
-    /// (those [`MarkerState::static_masks`] leaves) and that are paler than the marker by at
-    /// least [`TOUCHING_PALER_LEVELS`], each with a saturation floor halfway between the two
+    /// (not among the boxes `masked` whole, which hold what [`MarkerState::static_masks`]
+    /// gave) and that are paler than the marker by at least [`TOUCHING_PALER_LEVELS`], each with a saturation floor halfway between the two
     /// ([`MarkerState::paler_floor`]): in them only the marker's own pixels count, so that a
     /// marker passing over a paler look-alike of its hue is measured on itself, not on the
     /// pair. Elsewhere the box is masked whole: under flicker and JPEG some of a look-alike's
     /// pixels rise over the floor, and a track thrown near it must not settle on them.
-    pub(super) fn paler_boxes(&self, region: PixelRect, pred: Point2<f64>) -> Vec<(PixelRect, u8)> {
-        let masked = self.static_masks(region, pred);
+    pub(super) fn paler_boxes(
+        &self,
+        region: PixelRect,
+        masked: &[PixelRect],
+    ) -> Vec<(PixelRect, u8)> {
         self.distractors
             .iter()
             .filter(|d| d.seen >= 2 && d.bounds.intersect(&region).area() > 0)
