@@ -190,6 +190,19 @@ impl MarkerState {
         }
     }
 
+    /// Given a state that followed something else (see `Tracker::repair_swaps`): its
+    /// velocity is forgotten and it is looked for as a marker missing for
+    /// [`STOP_AFTER_MISSES`] frames, so that where it is found next is not taken for a jump
+    /// it made in one frame (a 120 px recovery became a velocity of 95 px a frame, which
+    /// carried the prediction out of the frame and the marker was lost for 6 frames).
+    pub(super) fn whereabouts_unknown(&mut self) {
+        self.filter.stop(window_px(self));
+        self.misses = self.misses.max(STOP_AFTER_MISSES);
+        if self.last_status.found() {
+            self.last_status = TrackStatus::Predicted;
+        }
+    }
+
     /// Frames the search has gone on: misses, or frames followed only on weak measurements
     /// (a still look-alike taken at a release's turn kept the gate at its normal size for
     /// seven frames while the marker swung 150 px away).

@@ -169,13 +169,24 @@ impl Tracker {
                 }
                 let (pi, pj) = (&recent[i], &recent[j]);
                 let swapped = swapped(pi, pj, si, sj);
-                let exchange = if met {
-                    swapped || self.stolen(pi, j, si, sj) || self.stolen(pj, i, sj, si)
+                // Which track took the other's marker (only two that met).
+                let taken_by = if !met || swapped {
+                    None
+                } else if self.stolen(pi, j, si, sj) {
+                    Some(i)
+                } else if self.stolen(pj, i, sj, si) {
+                    Some(j)
                 } else {
-                    swapped
+                    None
                 };
-                if exchange {
+                if swapped || taken_by.is_some() {
                     self.exchange(i, j, None);
+                    if let Some(k) = taken_by {
+                        // The track that took the other's marker now holds what the other's
+                        // track knew, left behind on a stem or a look-alike: where its own
+                        // marker is, is unknown.
+                        self.markers[k].whereabouts_unknown();
+                    }
                     recent[i] = self.recent_found(i);
                     recent[j] = self.recent_found(j);
                 }
@@ -331,7 +342,11 @@ impl Tracker {
         std::mem::swap(&mut a.swing, &mut b.swing);
         std::mem::swap(&mut a.acceleration_px, &mut b.acceleration_px);
         std::mem::swap(&mut a.last_center, &mut b.last_center);
-        std::mem::swap(&mut a.size, &mut b.size);
+        if self.config.window == WindowMode::Adaptive {
+            // The window measured on the marker each filter followed; a fixed window is
+            // the marker's own.
+            std::mem::swap(&mut a.size, &mut b.size);
+        }
         std::mem::swap(&mut a.depth_m, &mut b.depth_m);
         std::mem::swap(&mut a.misses, &mut b.misses);
         std::mem::swap(&mut a.weak_run, &mut b.weak_run);
@@ -454,8 +469,10 @@ mod tests {
                 .iter()
                 .all(|o| { o.center.is_some_and(|c| (c.x - 100.5).abs() < 1e-9) })
         );
-        // Where each is now goes with the exchange; who each is stays.
+        // Where each is now goes with the exchange; who each is stays; both states followed
+        // a marker, so neither is looked for as missing.
         assert_eq!(t.markers[0].filter.position, Point2::new(71.0, 30.0));
+        assert!(t.markers.iter().all(|m| m.misses == 0));
         assert_eq!(t.markers[0].id, "A");
         assert_eq!(
             t.markers[0].signature.map(|s| s.centre),
@@ -479,6 +496,13 @@ mod tests {
                 Point2::new(100.0, 8.0),
             );
         }
+        // A's filter follows what it took (B's marker, moving down); B's stands on a stem,
+        // with a velocity left from before.
+        t.markers[0].filter.velocity = Vector2::new(0.0, 3.0);
+        t.markers[1].filter.velocity = Vector2::new(5.0, 0.0);
+        for m in &mut t.markers {
+            m.last_status = TrackStatus::Tracked;
+        }
         Ok(repaired(t))
     }
 
@@ -495,6 +519,14 @@ mod tests {
                 .iter()
                 .all(|o| o.center == Some(Point2::new(100.0, 8.0)))
         );
+        // B goes on with the motion A's track followed; A, given what B's track stood on,
+        // is looked for as a marker missing, with no velocity (where it is found next is
+        // not a jump made in one frame).
+        assert_eq!(t.markers[1].filter.velocity, Vector2::new(0.0, 3.0));
+        assert_eq!(t.markers[1].misses, 0);
+        assert_eq!(t.markers[0].filter.velocity, Vector2::zeros());
+        assert!(t.markers[0].misses >= STOP_AFTER_MISSES);
+        assert_eq!(t.markers[0].last_status, TrackStatus::Predicted);
         // Without motion along B's line (a still look-alike there), nothing changes.
         let (t, before) = run_taken(false)?;
         let after: Vec<_> = t.tracks[0].observations.iter().map(|o| o.center).collect();
