@@ -46,7 +46,6 @@ impl Tracker {
             let accept = m.misses == 0
                 && !self.far_beyond_reach(i, c)
                 && q.measured.confidence >= self.config.min_confidence
-                && !m.held_on_weak(&self.config, q.measured.confidence)
                 && m.typical(q.measured.confidence)
                 && d2[i] <= GATE_CHI2
                 && !m.on_look_alike(&q.measured)
@@ -416,14 +415,8 @@ impl Tracker {
                         // or a blob the quick pass's region cut): reported as an estimate.
                         o.status = TrackStatus::Predicted;
                         m.weak_run += 1;
-                        m.weak_at = if m.weak_run == 1 {
-                            Some(q.center)
-                        } else {
-                            m.weak_at.filter(|p| (p - q.center).norm() <= PARKED_PX)
-                        };
                     } else {
                         m.weak_run = 0;
-                        m.weak_at = None;
                     }
                     m.learn_appearance(q.confidence, context);
                     if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
@@ -840,51 +833,6 @@ mod tests {
                 .iter()
                 .all(|o| o.status != TrackStatus::Predicted)
         );
-        Ok(())
-    }
-
-    /// A's track after `frames` weak measurements (under the trusted confidence), the k-th
-    /// at `home` moved by `k * step` px to the right.
-    fn weak_run(frames: usize, step: f64) -> Result<Tracker> {
-        let (mut t, _, home) = setup()?;
-        let frame = RgbImage::from_pixel(t.width, t.height, image::Rgb([100, 110, 95]));
-        for k in 0..frames {
-            let q = Measured {
-                confidence: 0.7 * TRUSTED_CONFIDENCE,
-                ..measured_at_point(home + Vector2::new(step * k as f64, 0.0))
-            };
-            let results = vec![Some((q, TrackStatus::Tracked, None)), None];
-            t.record(&frame, None, results, &[false, false]);
-        }
-        Ok(t)
-    }
-
-    #[test]
-    fn a_track_standing_still_on_weak_measurements_is_not_held_there_for_long() -> Result<()> {
-        let config = TrackerConfig::default();
-        let weak = 0.7 * TRUSTED_CONFIDENCE;
-        let coast = 2 * config.max_coast_frames;
-        // Still: held until it has stood there twice as long as it may coast.
-        let t = weak_run(coast - 1, 0.0)?;
-        assert!(!t.markers[0].held_on_weak(&config, weak));
-        let t = weak_run(coast, 0.0)?;
-        let m = &t.markers[0];
-        assert!(m.held_on_weak(&config, weak));
-        // A sure measurement is taken still.
-        assert!(!m.held_on_weak(&config, TRUSTED_CONFIDENCE));
-        // Moving on its weak measurements (a marker half hidden while it swings): followed.
-        let t = weak_run(3 * coast, PARKED_PX)?;
-        assert!(!t.markers[0].held_on_weak(&config, weak));
-        // A sure measurement ends the run.
-        let mut t = weak_run(coast, 0.0)?;
-        let frame = RgbImage::from_pixel(t.width, t.height, image::Rgb([100, 110, 95]));
-        let home = t.markers[0].home;
-        let sure = vec![
-            Some((measured_at_point(home), TrackStatus::Tracked, None)),
-            None,
-        ];
-        t.record(&frame, None, sure, &[false, false]);
-        assert!(!t.markers[0].held_on_weak(&config, weak));
         Ok(())
     }
 

@@ -465,9 +465,6 @@ struct MarkerState {
     /// Frames in a row followed on a measurement too weak to report as found (under
     /// [`TRUSTED_CONFIDENCE`], or cut): the search widens over them as over misses.
     weak_run: usize,
-    /// Where the current run of weak measurements started, while every one of them has
-    /// stayed within [`PARKED_PX`] of it (a track standing still on something dim).
-    weak_at: Option<Point2<f64>>,
     last_status: TrackStatus,
     /// The surroundings, with [`TrackerConfig::context_check`].
     context: Option<Template>,

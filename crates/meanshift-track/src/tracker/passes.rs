@@ -411,7 +411,6 @@ impl Tracker {
         let mut with_context = Vec::with_capacity(found.len());
         for c in found {
             if c.confidence < self.config.min_confidence
-                || m.held_on_weak(&self.config, c.confidence)
                 || (self.config.exclusive && taken(&self.markers, i, c.center, claimed))
             {
                 continue;
@@ -547,8 +546,7 @@ impl Tracker {
             .iter()
             .any(|&o| o != i && same_look(&self.markers[o], m) && self.in_normal_gate(o, p));
         let dim_here = quick[i].is_some_and(|q| {
-            !m.held_on_weak(&self.config, q.measured.confidence)
-                && q.measured.confidence >= DIM_SHARE * self.config.min_confidence
+            q.measured.confidence >= DIM_SHARE * self.config.min_confidence
                 && self.in_normal_gate(i, q.measured.center)
         });
         let jump = if leaving && (owned || dim_here) {

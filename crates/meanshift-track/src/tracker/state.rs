@@ -34,7 +34,6 @@ impl MarkerState {
             depth_m: None,
             misses: 0,
             weak_run: 0,
-            weak_at: None,
             last_status: TrackStatus::Tracked,
             context: None,
             context_level: 1.0,
@@ -189,25 +188,6 @@ impl MarkerState {
             self.context_level += APPEARANCE_RATE * d;
             self.context_var += APPEARANCE_RATE * (d * d - self.context_var);
         }
-    }
-
-    /// Whether a measurement of `confidence` would keep this marker standing still on weak
-    /// measurements (under [`TRUSTED_CONFIDENCE`], all within [`PARKED_PX`] of where the
-    /// run started) for twice as long as it may coast ([`TrackerConfig::max_coast_frames`]):
-    /// then it is not taken on the quick pass's word, nor does it hold the marker at its
-    /// prediction, nor is it a candidate of detection, which looks for the marker as for one
-    /// missing. Over such a run the marker's usual likeness and its motion model settle on
-    /// whatever it stands on: a track left on a paler look-alike cut by the frame's border
-    /// while its marker was out of the frame stayed there, at confidence 0.42, for 80 frames
-    /// after the marker came back into plain view 30–80 px away (reentry seed 9000). A
-    /// marker half hidden while it swings is followed on its weak measurements as before:
-    /// they move with it (without the stillness, detection took such markers to
-    /// look-alikes beside them), and one swinging slowly (a pixel a frame) stands still
-    /// for five frames (after as long as it may coast, one was taken to a look-alike).
-    pub(super) fn held_on_weak(&self, config: &TrackerConfig, confidence: f64) -> bool {
-        self.weak_run >= 2 * config.max_coast_frames
-            && self.weak_at.is_some()
-            && confidence < TRUSTED_CONFIDENCE
     }
 
     /// Given a state that followed something else (see `Tracker::repair_swaps`): its

@@ -350,7 +350,6 @@ impl Tracker {
         std::mem::swap(&mut a.depth_m, &mut b.depth_m);
         std::mem::swap(&mut a.misses, &mut b.misses);
         std::mem::swap(&mut a.weak_run, &mut b.weak_run);
-        std::mem::swap(&mut a.weak_at, &mut b.weak_at);
         std::mem::swap(&mut a.last_status, &mut b.last_status);
         std::mem::swap(&mut a.context, &mut b.context);
         std::mem::swap(&mut a.context_level, &mut b.context_level);
