@@ -193,7 +193,7 @@ impl MarkerState {
     /// Given a state that followed something else (see `Tracker::repair_swaps`): its
     /// velocity is forgotten and it is looked for as a marker missing for
     /// [`STOP_AFTER_MISSES`] frames, so that where it is found next is not taken for a jump
-    /// it made in one frame (a 120 px recovery became a velocity of 95 px a frame, which
+    /// it made in one frame (a 130 px recovery became a velocity of 95 px a frame, which
     /// carried the prediction out of the frame and the marker was lost for 6 frames).
     pub(super) fn whereabouts_unknown(&mut self) {
         self.filter.stop(window_px(self));

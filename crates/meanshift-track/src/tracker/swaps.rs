@@ -332,8 +332,9 @@ impl Tracker {
         }
     }
 
-    /// Exchange what `i` and `j` know of where they are (motion, swing, surroundings), keep
-    /// what they are (name, look, home, signature), and exchange their observations from
+    /// Exchange what `i` and `j` know of where they are (motion, swing, surroundings, an
+    /// adaptive window's size), keep what they are (name, look, home, signature, a fixed
+    /// window), and exchange their observations from
     /// `from` (by default, since they were last together).
     fn exchange(&mut self, i: usize, j: usize, from: Option<usize>) {
         let (a, b) = self.markers.split_at_mut(j);
