@@ -445,7 +445,8 @@ struct Parked {
     /// The last window there.
     bounds: PixelRect,
     /// Whether detection took it there by a jump of more than [`PARKED_JUMP_WINDOWS`]
-    /// windows (rather than the quick pass following it there).
+    /// windows, or straight after frames the marker was missing in, to a place off its
+    /// swing line (rather than the quick pass following it there).
     jumped_in: bool,
     /// The first frame of the stay: where detection threw the track, when that was before
     /// the last [`PARKED_FRAMES`] frames, else the first of them.
@@ -500,8 +501,17 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     let entered = (obs.len().saturating_sub(PARKED_LOOKBACK_FRAMES).max(1)..obs.len())
         .rev()
         .find(|&k| (k.saturating_sub(PARKED_EXCURSION_FRAMES + 1)..k).all(away));
-    let thrown_before = entered.filter(|&k| k < start && thrown(k));
-    let jumped_in = thrown_before.is_some() || (start.max(1)..obs.len()).any(thrown);
+    let off_line = m
+        .signature
+        .is_some_and(|s| s.offset(at) > PARKED_OFF_LINE_SPREADS);
+    // A track that came to the place straight from frames the marker was missing in (out
+    // of the frame, hidden) was taken there by detection as much as one thrown there; off
+    // the marker's own swing line the place is not one it is held on in a pull.
+    let back_from_loss = |k: usize| off_line && k >= 1 && !followed(&obs[k - 1]);
+    let thrown_before = entered.filter(|&k| k < start && (thrown(k) || back_from_loss(k)));
+    let jumped_in = thrown_before.is_some()
+        || (start.max(1)..obs.len()).any(thrown)
+        || entered.is_some_and(back_from_loss);
     // Near its home a marker may be held still (a child carried by its parent's pull), but
     // not on a look-alike it knew as static before the track came there, nor far off the
     // line it swings along (a pull is held on that line).
@@ -510,9 +520,6 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
         (d.at - at).norm() < (DISTRACTOR_RADIUS * side).max(2.0)
             && d.static_frame.is_some_and(|f| f < came)
     });
-    let off_line = m
-        .signature
-        .is_some_and(|s| s.offset(at) > PARKED_OFF_LINE_SPREADS);
     let from_home = (at - m.home).norm();
     if from_home <= HOME_NEAR_WINDOWS * side
         && !((known_before || off_line) && from_home > LOOK_ALIKE_FROM_HOME_WINDOWS * side)
@@ -769,6 +776,57 @@ mod tests {
         let t = thrown(true)?;
         assert_eq!(t.markers[0].misses, 0);
         assert_eq!(last(&t), Some(TrackStatus::Tracked));
+        Ok(())
+    }
+
+    #[test]
+    fn a_track_taken_off_its_line_straight_after_the_marker_went_missing_is_parked() -> Result<()> {
+        // A swings along x through its home; it runs out of sight 5 windows right of home
+        // (three frames coasting on, not measured), and the track is taken 1.5 windows
+        // from there (under the throw's 2 windows) to a still place 1.4 windows above the
+        // line, or on it.
+        let taken = |on_line: bool| -> Result<Tracker> {
+            let (mut t, side, home) = setup()?;
+            t.markers[0].signature = Some(crate::swing::SwingLine {
+                centre: home,
+                normal: Vector2::new(0.0, 1.0),
+                sigma_px: 3.0,
+                half_length_px: 6.0 * side,
+            });
+            let gone = Point2::new(home.x + 5.0 * side, home.y);
+            let there = if on_line {
+                Point2::new(gone.x - 1.5 * side, home.y)
+            } else {
+                Point2::new(gone.x - 0.5 * side, home.y - 1.4 * side)
+            };
+            park(&mut t, gone, 4);
+            let len = t.tracks[0].observations.len();
+            for o in &mut t.tracks[0].observations[len - 3..] {
+                o.status = TrackStatus::Predicted;
+                o.confidence = 0.0;
+            }
+            park(&mut t, there, PARKED_FRAMES);
+            let len = t.tracks[0].observations.len();
+            t.tracks[0].observations[len - PARKED_FRAMES].status = TrackStatus::Recovered;
+            t.learn_parked();
+            Ok(t)
+        };
+        let t = taken(false)?;
+        assert_eq!(t.markers[0].misses, PARKED_FRAMES);
+        let obs = &t.tracks[0].observations;
+        assert!(
+            obs[obs.len() - PARKED_FRAMES..]
+                .iter()
+                .all(|o| o.status == TrackStatus::Predicted && o.confidence == 0.0)
+        );
+        // On its line (a pull held there once the marker is back in view): not parked.
+        let t = taken(true)?;
+        assert_eq!(t.markers[0].misses, 0);
+        assert!(
+            t.tracks[0].observations[t.tracks[0].observations.len() - PARKED_FRAMES + 1..]
+                .iter()
+                .all(|o| o.status == TrackStatus::Tracked)
+        );
         Ok(())
     }
 

@@ -528,7 +528,9 @@ impl Tracker {
 
     /// The extra cost of colour marker `i` taking place `p`:
     /// - a place inside another undecided same-look marker's normal gate is that marker's by
-    ///   motion: reaching it only by a manoeuvre costs [`OWNED_COST`];
+    ///   motion: reaching it only by a manoeuvre costs [`OWNED_COST`] (not for a marker
+    ///   lost past its coasting frames, whose grown gate tells where it may be, not that it
+    ///   is there: a marker gone for ten frames would own its whole neighbourhood);
     /// - a marker whose quick pass saw it at its prediction, only dimmer than a track needs,
     ///   is most likely still there: leaving its normal gate costs [`OWNED_COST`] too;
     /// - another marker's home beyond this one's reach, or a place far beyond that reach from
@@ -542,9 +544,13 @@ impl Tracker {
     ) -> f64 {
         let m = &self.markers[i];
         let leaving = !self.in_normal_gate(i, p);
-        let owned = undecided
-            .iter()
-            .any(|&o| o != i && same_look(&self.markers[o], m) && self.in_normal_gate(o, p));
+        let owned = undecided.iter().any(|&o| {
+            let other = &self.markers[o];
+            o != i
+                && other.misses <= self.config.max_coast_frames
+                && same_look(other, m)
+                && self.in_normal_gate(o, p)
+        });
         let dim_here = quick[i].is_some_and(|q| {
             q.measured.confidence >= DIM_SHARE * self.config.min_confidence
                 && self.in_normal_gate(i, q.measured.center)
@@ -812,6 +818,27 @@ mod tests {
         // Once A has been found that far (its swing reaches there), it may be A.
         t.markers[0].reach_px = 125.0;
         assert!(!t.at_another_home(0, Point2::new(151.0, 32.0)));
+        Ok(())
+    }
+
+    #[test]
+    fn a_lost_markers_grown_gate_owns_no_place() -> Result<()> {
+        let mut t = two_red_markers()?;
+        // B, found last frame, jumped 20 px (past its normal gate) at its release; A, of
+        // B's look, has coasted for a while and its normal gate has grown over B.
+        let place = Point2::new(t.markers[1].home.x - 20.0, t.markers[1].home.y);
+        assert!(!t.in_normal_gate(1, place));
+        t.markers[0].gate_var = 1e6;
+        assert!(t.in_normal_gate(0, place));
+        let quick = [None, None];
+        // Coasting a frame or two (within `max_coast_frames`): A may still be about to
+        // appear there, so B reaching it by a manoeuvre pays the owner's price.
+        t.markers[0].misses = 2;
+        assert_eq!(t.colour_cost(1, place, &[0, 1], &quick), OWNED_COST);
+        // Lost (past the coasting frames): its gate says where it may be, not that it is
+        // there, and B's own blob costs B nothing extra.
+        t.markers[0].misses = t.config.max_coast_frames + 1;
+        assert_eq!(t.colour_cost(1, place, &[0, 1], &quick), 0.0);
         Ok(())
     }
 
