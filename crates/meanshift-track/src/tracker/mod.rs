@@ -458,6 +458,9 @@ struct MarkerState {
     /// The swing line the marker is known by: its first, replaced only by lines along the
     /// same direction (a swap of two markers of one look is seen against it).
     signature: Option<crate::swing::SwingLine>,
+    /// The frame of the last exchange of this marker's state with another's (see
+    /// `swaps.rs`): its swing history before it may be another track's.
+    exchanged_at: Option<usize>,
     reference: Reference,
     depth_m: Option<f64>,
     /// Frames since the last measurement.

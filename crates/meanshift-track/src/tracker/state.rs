@@ -23,6 +23,7 @@ impl MarkerState {
             reach_px: 0.0,
             dense_until: 0,
             signature: None,
+            exchanged_at: None,
             reference: Reference {
                 mass: 1.0,
                 pixel_weight: 255.0,

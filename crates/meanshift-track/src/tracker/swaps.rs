@@ -34,6 +34,13 @@
 //! their own, the two are exchanged from the frame they parted, and their swings are learnt
 //! again from the mended tracks.
 //!
+//! Two markers at rest closer than a window overlap from the first frame, so no crossing is
+//! judged when they first move, and a swap there leaves neither with a signature from
+//! before it. A branch marker swings about its rest place (its home): when each track's line
+//! runs through the other marker's home and one of them far from its own, the two are
+//! exchanged ([`Tracker::homes_swapped`]; only with lines learnt from the tracks' own
+//! histories, no exchange in the last [`MAX_REVISED_FRAMES`] frames).
+//!
 //! A signature is only refined by a line along the same direction that is about as tight
 //! and centred on it: a track drifting onto another marker's path fits a wider or shifted
 //! line, and letting it replace the signature would make the other path look like its own.
@@ -154,6 +161,25 @@ impl Tracker {
                     recent[j] = self.recent_found(j);
                     continue;
                 }
+                if self.homes_swapped(i, j, &recent[i], &recent[j]) {
+                    // The swap lies further back than the lines tell; at least the frames a
+                    // swap by the lines is judged on are exchanged, so that the two lines
+                    // learnt next from the mended tracks are not a swap again.
+                    let len = self.frames();
+                    let from = self
+                        .last_met(i, j)
+                        .map_or(len, |met| met + 1)
+                        .min(len.saturating_sub(SWAP_FRAMES));
+                    self.exchange(i, j, Some(from));
+                    // Whatever signatures the two learnt were learnt on the swapped tracks
+                    // (with a signature from before, the lines would have told the swap).
+                    for k in [i, j] {
+                        self.markers[k].signature = None;
+                    }
+                    recent[i] = self.recent_found(i);
+                    recent[j] = self.recent_found(j);
+                    continue;
+                }
                 let (Some(si), Some(sj)) = (self.markers[i].signature, self.markers[j].signature)
                 else {
                     continue;
@@ -192,6 +218,42 @@ impl Tracker {
                 }
             }
         }
+    }
+
+    /// Whether same-look markers `i` and `j`, both found in this frame, swing along lines
+    /// through each other's homes and not through their own: a branch marker swings about
+    /// its rest place, so a track whose line runs [`STOLEN_OWN_OFFSET`] spreads or more from
+    /// its marker's home, while the other track's line runs through that home and its own
+    /// line through the other's, follows the other marker (two markers at rest closer than a
+    /// window, whose tracks exchanged where they first moved, before either had a line).
+    fn homes_swapped(&self, i: usize, j: usize, pi: &[Point2<f64>], pj: &[Point2<f64>]) -> bool {
+        let (a, b) = (&self.markers[i], &self.markers[j]);
+        if !same_look(a, b) || !a.last_status.found() || !b.last_status.found() {
+            return false;
+        }
+        // Each line is learnt from its own track only (an exchange moves the swing history
+        // with the state, and the frames before it may hold the other marker's path).
+        let now = self.frames();
+        if [a, b]
+            .iter()
+            .any(|m| m.exchanged_at.is_some_and(|f| f + MAX_REVISED_FRAMES > now))
+        {
+            return false;
+        }
+        let (Some(li), Some(lj)) = (a.swing.line(), b.swing.line()) else {
+            return false;
+        };
+        // The lines are the tracks' own now: a swing exchanged or mended lately can hold
+        // another path than the one the track follows.
+        if !along(pi, &li) || !along(pj, &lj) {
+            return false;
+        }
+        let (own_i, own_j) = (li.offset(a.home), lj.offset(b.home));
+        let (other_i, other_j) = (li.offset(b.home), lj.offset(a.home));
+        own_i.max(own_j) >= STOLEN_OWN_OFFSET
+            && other_i <= SWAP_MAX_OFFSET
+            && other_j <= SWAP_MAX_OFFSET
+            && other_i + other_j < SWAP_RATIO * (own_i + own_j)
     }
 
     /// Where marker `k` was found in the last [`SWAP_FRAMES`] frames.
@@ -356,6 +418,9 @@ impl Tracker {
         std::mem::swap(&mut a.context_level, &mut b.context_level);
         std::mem::swap(&mut a.context_var, &mut b.context_var);
         std::mem::swap(&mut a.gate_var, &mut b.gate_var);
+        let now = self.tracks[i].observations.len();
+        a.exchanged_at = Some(now);
+        b.exchanged_at = Some(now);
         // From the frame after they were last together (the swap happened there), or over
         // the frames the swap was judged on.
         let len = self.tracks[i]
@@ -372,6 +437,13 @@ impl Tracker {
             std::mem::swap(&mut oa[f], &mut ob[f]);
         }
     }
+}
+
+/// Whether the recent track `p` (at least [`SWAP_MIN_FOUND`] places) lies along `line`: a
+/// mean offset of at most [`SWAP_MAX_OFFSET`] spreads.
+fn along(p: &[Point2<f64>], line: &SwingLine) -> bool {
+    p.len() >= SWAP_MIN_FOUND
+        && p.iter().map(|&q| line.offset(q)).sum::<f64>() / p.len() as f64 <= SWAP_MAX_OFFSET
 }
 
 /// Whether the recent tracks `pi` and `pj` of two markers lie along each other's lines `sj`
@@ -478,6 +550,68 @@ mod tests {
         assert_eq!(
             t.markers[0].signature.map(|s| s.centre),
             Some(Point2::new(60.0, 30.0))
+        );
+        Ok(())
+    }
+
+    /// A and B (homes (20, 30) and (150, 30)) after 16 frames with no signature known: A's
+    /// track swinging up and down through B's home and B's track along a line through A's
+    /// home (`swapped`), or each through its own; with `exchanged_at`, A's state was
+    /// exchanged with another's on that frame.
+    fn run_homes(swapped: bool, exchanged_at: Option<usize>) -> Result<Tracker> {
+        let mut t = two_red_markers()?;
+        for k in 0..16_u32 {
+            let s = f64::from(k % 8) - 3.5;
+            let vertical = Point2::new(150.0 + 0.3 * s.signum(), 30.0 + 4.0 * s);
+            let horizontal = Point2::new(20.0 + 5.0 * s, 30.0 - 0.3 * s.signum());
+            let (a, b) = if swapped {
+                (vertical, horizontal)
+            } else {
+                (horizontal, vertical)
+            };
+            push(&mut t, a, b);
+            let frame = u64::from(k) + 1;
+            t.markers[0].swing.record(frame, a);
+            t.markers[1].swing.record(frame, b);
+        }
+        for m in &mut t.markers {
+            m.last_status = TrackStatus::Tracked;
+        }
+        t.markers[0].exchanged_at = exchanged_at;
+        t.repair_swaps();
+        Ok(t)
+    }
+
+    #[test]
+    fn tracks_swinging_through_each_others_homes_are_exchanged() -> Result<()> {
+        let t = run_homes(true, None)?;
+        // Exchanged: A's track now swings through A's home, and at least the frames a
+        // swap by the lines is judged on are A's marker's.
+        let line = t.markers[0].swing.line().expect("a line");
+        assert!(line.offset(t.markers[0].home) < 1.0);
+        let obs = &t.tracks[0].observations;
+        assert!(
+            obs[obs.len() - SWAP_FRAMES..]
+                .iter()
+                .all(|o| o.center.is_some_and(|c| c.x < 60.0))
+        );
+        assert!(t.markers.iter().all(|m| m.signature.is_none()));
+        assert_eq!(t.markers[0].id, "A");
+        // Each through its own home: left alone.
+        let t = run_homes(false, None)?;
+        let a_own = |t: &Tracker| {
+            t.tracks[0].observations[1..]
+                .iter()
+                .all(|o| o.center.is_some_and(|c| c.x < 60.0))
+        };
+        assert!(a_own(&t));
+        // Swapped, but A's swing history holds frames from before an exchange 10 frames
+        // ago (under `MAX_REVISED_FRAMES`): not judged by it, left alone.
+        let t = run_homes(true, Some(7))?;
+        assert!(
+            t.tracks[0].observations[1..]
+                .iter()
+                .all(|o| o.center.is_some_and(|c| c.x > 100.0))
         );
         Ok(())
     }
