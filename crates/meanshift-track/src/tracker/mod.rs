@@ -329,6 +329,13 @@ const CHANGED_LEVEL: u8 = 30;
 const STATIC_SHARE: f64 = 0.3;
 /// Extra cost of such a static candidate.
 const STATIC_JUMP_COST: f64 = 8.0;
+/// Least speed (marker widths per frame) at which a marker's blob may be a streak along its
+/// motion rather than a static candidate (see `passes::streak_along_motion`).
+const STREAK_MIN_SPEED_WIDTHS: f64 = 0.25;
+/// Least length (marker widths) along the motion of a blob's box for it to be a streak: a
+/// marker-sized disc's box reaches at most 1.41 widths along any direction (a diagonal); a
+/// marker that moves a width during the exposure draws a streak two widths long.
+const STREAK_MIN_LENGTH_WIDTHS: f64 = 2.0;
 /// A pixel no brighter than this in every channel is a hole (no data).
 const HOLE_LEVEL: u8 = 2;
 /// Share of holes around a marker above which its blob bridges 2-pixel gaps.

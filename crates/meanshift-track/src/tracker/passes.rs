@@ -431,6 +431,7 @@ impl Tracker {
                     && m.misses == 0
                     && m.template.is_none()
                     && (s.measured.center - m.last_center).norm() > window_px(m)
+                    && !streak_along_motion(m, s.measured.holds)
                     && changed_share(frame, prev, s.measured.holds) < STATIC_SHARE
                 {
                     s.cost += STATIC_JUMP_COST;
@@ -700,6 +701,24 @@ fn whole_of_cut(
         .map(|w| (quick.center, *w))
 }
 
+/// Whether a blob whose pixels are `holds` is marker `m` smeared along its motion: the
+/// marker moves at least [`STREAK_MIN_SPEED_WIDTHS`] of its width a frame, and the box
+/// reaches [`STREAK_MIN_LENGTH_WIDTHS`] of that width (and the pixel the box is grown by
+/// each way) along the direction of motion, farther than a marker-sized disc's box reaches
+/// any way. A blurred marker is paler the longer its streak, so its pixels may change by
+/// less than [`CHANGED_LEVEL`] from the frame before and pass for something that was
+/// already there; a look-alike standing still does not lie along the marker's motion.
+fn streak_along_motion(m: &MarkerState, holds: PixelRect) -> bool {
+    let v = m.filter.velocity;
+    let speed = v.norm();
+    let width = m.reference.width_px;
+    if !(speed.is_finite() && width.is_finite()) || speed < STREAK_MIN_SPEED_WIDTHS * width {
+        return false;
+    }
+    let along = (v.x.abs() * f64::from(holds.width) + v.y.abs() * f64::from(holds.height)) / speed;
+    along >= STREAK_MIN_LENGTH_WIDTHS * width + 2.0
+}
+
 /// The whole blob of [`whole_of_cut`] in place of the cut one it was found for.
 fn seen_whole(measured: Measured, whole: Option<(Point2<f64>, Measured)>) -> Measured {
     match whole {
@@ -932,6 +951,30 @@ mod tests {
         // Tracked further out once, it reaches further.
         t.markers[0].reach_px = 0.5 * limit;
         assert!(!t.far_beyond_reach(0, at(1.1 * limit)));
+        Ok(())
+    }
+
+    #[test]
+    fn a_box_long_along_the_markers_motion_is_a_streak_and_a_disc_is_not() -> Result<()> {
+        let mut t = two_red_markers()?;
+        let m = &mut t.markers[0];
+        let w = m.reference.width_px;
+        assert!((7.0..=11.0).contains(&w), "{w}");
+        let side = (w + 2.0).round() as i32;
+        let long = (3.0 * w).round() as i32;
+        // Moving left a width a frame: a box three widths long across x is a streak; the
+        // same box across y, or a marker-sized disc's box, is not.
+        m.filter.velocity = Vector2::new(-w, 0.0);
+        assert!(streak_along_motion(m, PixelRect::new(0, 0, long, side)));
+        assert!(!streak_along_motion(m, PixelRect::new(0, 0, side, long)));
+        assert!(!streak_along_motion(m, PixelRect::new(0, 0, side, side)));
+        // Along a diagonal a disc's box is still no streak; a long diagonal streak's is.
+        m.filter.velocity = Vector2::new(w, w);
+        assert!(!streak_along_motion(m, PixelRect::new(0, 0, side, side)));
+        assert!(streak_along_motion(m, PixelRect::new(0, 0, long, long)));
+        // A marker at rest (or creeping) draws no streak, whatever the box.
+        m.filter.velocity = Vector2::new(0.1 * w, 0.0);
+        assert!(!streak_along_motion(m, PixelRect::new(0, 0, long, side)));
         Ok(())
     }
 }
