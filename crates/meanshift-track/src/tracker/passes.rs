@@ -7,13 +7,40 @@ impl Tracker {
     /// Marker `i`'s quick pass: its candidates near the prediction (the gray template's
     /// matches, or the blobs of its weights), scored together; the best, and the places of
     /// the others. Plain mean-shift's mode without recovery, or as the fallback of a
-    /// colour model when no blob fits (at half its confidence).
+    /// colour model when no blob fits (at half its confidence). A colour marker's best blob
+    /// that the region about the prediction cut (a marker turning at the end of a fast
+    /// swing, which the prediction overshot) is weighed again in a region about it, and
+    /// measured whole there when the second region holds it whole ([`holds_whole`]).
     pub(super) fn quick_pass(
         &mut self,
         frame: &RgbImage,
         depth: Option<&DepthView<'_>>,
         i: usize,
         predictions: &[Point2<f64>],
+    ) -> (Option<Scored>, Vec<(Point2<f64>, PixelRect)>) {
+        let first = self.quick_about(frame, depth, i, predictions, predictions[i]);
+        let colour = self.markers[i].template.is_none() && self.config.recovery;
+        if let (true, Some(cut)) = (colour, first.0.filter(|b| b.measured.cut)) {
+            let again = self.quick_about(frame, depth, i, predictions, cut.measured.center);
+            if again
+                .0
+                .is_some_and(|w| holds_whole(&w.measured, &cut.measured))
+            {
+                return again;
+            }
+        }
+        first
+    }
+
+    /// [`Tracker::quick_pass`] over the region about `about` (the prediction, or a blob the
+    /// region about it cut).
+    fn quick_about(
+        &mut self,
+        frame: &RgbImage,
+        depth: Option<&DepthView<'_>>,
+        i: usize,
+        predictions: &[Point2<f64>],
+        about: Point2<f64>,
     ) -> (Option<Scored>, Vec<(Point2<f64>, PixelRect)>) {
         let frame_side = f64::from(self.width.max(self.height));
         let m = &self.markers[i];
@@ -28,7 +55,7 @@ impl Tracker {
                 .clamp(0.25 * side, 1.5 * side);
             found = template_candidates(t, m, frame, pred, radius, 4, &mut self.patch);
         } else {
-            let region = quick_region(m, pred);
+            let region = quick_region(m, about);
             let masks = m.static_masks(region, pred);
             fill(
                 &mut self.region,
@@ -46,7 +73,7 @@ impl Tracker {
                 &m.model,
                 &self.config.criteria,
                 m.reference.mass,
-                pred,
+                about,
                 m.size,
             );
             let plain_mode = plain(&self.region, mode);
@@ -680,7 +707,6 @@ impl Confined {
     }
 }
 
-/// The region the quick pass weighs for marker `m` predicted at `pred`: 3x3 windows.
 /// A release streak the quick pass's region cut (`quick`, of marker `m` found in the last
 /// frame), which detection's gate holds whole (among `found`): the cut part is scored (it is
 /// where the marker's motion points), but the whole blob is its measurement, not the part
@@ -738,6 +764,7 @@ fn holds_whole(whole: &Measured, cut: &Measured) -> bool {
         && whole.confidence >= WHOLE_CONFIDENCE_SHARE * cut.confidence
 }
 
+/// The region the quick pass weighs for marker `m` about `pred`: 3x3 windows.
 fn quick_region(m: &MarkerState, pred: Point2<f64>) -> PixelRect {
     let (w, h) = m.size;
     PixelRect::centered_at(pred, w, h).grown(w, h)
@@ -975,6 +1002,35 @@ mod tests {
         // A marker at rest (or creeping) draws no streak, whatever the box.
         m.filter.velocity = Vector2::new(0.1 * w, 0.0);
         assert!(!streak_along_motion(m, PixelRect::new(0, 0, long, side)));
+        Ok(())
+    }
+
+    #[test]
+    fn a_blob_the_quick_region_cuts_is_weighed_again_about_it_and_measured_whole() -> Result<()> {
+        let mut t = two_red_markers()?;
+        // A turned at the end of a fast swing: it is at x = 56 while the prediction
+        // overshot to x = 40, so the region of 3x3 windows (11 px) about the prediction
+        // ends inside the marker and holds only its near half.
+        let frame = RgbImage::from_fn(192, 64, |x, y| {
+            let on = |cx: u32| x.abs_diff(cx) <= 4 && y.abs_diff(30) <= 4;
+            if on(56) || on(150) {
+                image::Rgb([215, 25, 30])
+            } else {
+                image::Rgb([100, 110, 95])
+            }
+        });
+        let pred = Point2::new(40.0, 30.0);
+        let region = quick_region(&t.markers[0], pred);
+        assert!(region.right() > 54 && region.right() < 59, "{region:?}");
+        let (best, _) = t.quick_pass(&frame, None, 0, &[pred, Point2::new(150.0, 30.0)]);
+        let best = best.expect("a candidate").measured;
+        // Measured whole at the marker's centre, not at the cut part's.
+        assert!(
+            (best.center - Point2::new(56.0, 30.0)).norm() < 0.5,
+            "{}",
+            best.center
+        );
+        assert!(!best.cut);
         Ok(())
     }
 }
