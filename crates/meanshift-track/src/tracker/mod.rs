@@ -934,18 +934,24 @@ fn measured_at_point(center: Point2<f64>) -> Measured {
     }
 }
 
-/// A tracker for unit tests: markers A and B of one red colour, 130 px apart on a gray
-/// 192x64 frame.
+/// A gray 192x64 frame with red 9x9 squares centred at `(x, 30)` for each `x` of `xs`
+/// ([`two_red_markers`]' markers at 20 and 150).
 #[cfg(test)]
-fn two_red_markers() -> Result<Tracker> {
-    let frame = RgbImage::from_fn(192, 64, |x, y| {
-        let on = |cx: u32| x.abs_diff(cx) <= 4 && y.abs_diff(30) <= 4;
-        if on(20) || on(150) {
+fn red_squares(xs: [u32; 2]) -> RgbImage {
+    RgbImage::from_fn(192, 64, |x, y| {
+        if y.abs_diff(30) <= 4 && xs.iter().any(|&cx| x.abs_diff(cx) <= 4) {
             image::Rgb([215, 25, 30])
         } else {
             image::Rgb([100, 110, 95])
         }
-    });
+    })
+}
+
+/// A tracker for unit tests: markers A and B of one red colour, 130 px apart on a gray
+/// 192x64 frame.
+#[cfg(test)]
+fn two_red_markers() -> Result<Tracker> {
+    let frame = red_squares([20, 150]);
     let inits = [
         MarkerInit {
             id: "A".into(),

@@ -803,7 +803,7 @@ pub(super) struct Gate {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tracker::{measured_at_point, two_red_markers};
+    use crate::tracker::{measured_at_point, red_squares, two_red_markers};
 
     #[test]
     fn a_streak_the_quick_region_cuts_is_measured_whole_where_detection_holds_it() -> Result<()> {
@@ -1011,14 +1011,7 @@ mod tests {
         // A turned at the end of a fast swing: it is at x = 56 while the prediction
         // overshot to x = 40, so the region of 3x3 windows (11 px) about the prediction
         // ends inside the marker and holds only its near half.
-        let frame = RgbImage::from_fn(192, 64, |x, y| {
-            let on = |cx: u32| x.abs_diff(cx) <= 4 && y.abs_diff(30) <= 4;
-            if on(56) || on(150) {
-                image::Rgb([215, 25, 30])
-            } else {
-                image::Rgb([100, 110, 95])
-            }
-        });
+        let frame = red_squares([56, 150]);
         let pred = Point2::new(40.0, 30.0);
         let region = quick_region(&t.markers[0], pred);
         assert!(region.right() > 54 && region.right() < 59, "{region:?}");
