@@ -94,6 +94,42 @@ impl Blob {
         }
     }
 
+    /// The blob without `part`, a part of its pixels (as [`Labeler::opened`] gives): the
+    /// rest's count, mass, centroid and moments (bounds: the whole blob's). `None` when
+    /// nothing of weight is left.
+    pub(crate) fn without(&self, part: &Blob) -> Option<Blob> {
+        let m = self.mass - part.mass;
+        let pixels = self.pixels.checked_sub(part.pixels)?;
+        if pixels == 0 || m <= 1e-9 * self.mass {
+            return None;
+        }
+        let c =
+            Point2::from((self.centroid.coords * self.mass - part.centroid.coords * part.mass) / m);
+        // Second moments about the rest's centroid: the whole's less the part's, each moved
+        // there (parallel axes).
+        let about = |b: &Blob| {
+            let d = b.centroid - c;
+            [
+                b.mass * (b.spread[0] + d.x * d.x),
+                b.mass * (b.spread[1] + d.x * d.y),
+                b.mass * (b.spread[2] + d.y * d.y),
+            ]
+        };
+        let (a, b) = (about(self), about(part));
+        Some(Blob {
+            pixels,
+            mass: m,
+            centroid: c,
+            bounds: self.bounds,
+            spread: [
+                ((a[0] - b[0]) / m).max(0.0),
+                (a[1] - b[1]) / m,
+                ((a[2] - b[2]) / m).max(0.0),
+            ],
+            label: self.label,
+        })
+    }
+
     /// Length of the blob's major axis, four standard deviations (pixels): a disc of diameter
     /// `d` gives `d`, a streak its length.
     pub(crate) fn length_px(&self) -> f64 {
@@ -128,6 +164,11 @@ pub(crate) struct Labeler {
     runs: Vec<Run>,
     row_runs: Vec<usize>,
     cursors: Vec<usize>,
+    /// A blob's pixels in its box, and the box eroded (scratch of [`Labeler::opened`]).
+    mask: Vec<u8>,
+    eroded: Vec<u8>,
+    opened: Vec<u8>,
+    rows: Vec<u8>,
 }
 
 /// Foreground pixels `x0..x1` of a row, and the label they were given.
@@ -175,6 +216,65 @@ fn find(parent: &mut [u32], mut a: u32) -> u32 {
         a = p;
     }
     a
+}
+
+/// Erosion (`all`) or dilation of the 0/1 image `src` (`w` x `h`, row-major) by a square of
+/// side `2 * k + 1`, into `dst`, with `rows` as scratch: a pixel is set when every (erosion)
+/// or some (dilation) pixel of the square about it is; for erosion, pixels off the image
+/// count as set when `outside_set`, else as unset. Separable (along the rows, then along the
+/// columns), each pass a running count of the set pixels under the square's side.
+fn square_filter(
+    src: &[u8],
+    dst: &mut Vec<u8>,
+    rows: &mut Vec<u8>,
+    (w, h): (usize, usize),
+    k: usize,
+    (all, outside_set): (bool, bool),
+) {
+    let off = usize::from(all && outside_set);
+    rows.clear();
+    rows.resize(w * h, 0);
+    for y in 0..h {
+        line_filter(src, (y * w, 1, w), rows, y * w, k, (all, off));
+    }
+    dst.clear();
+    dst.resize(w * h, 0);
+    for x in 0..w {
+        line_filter(rows, (x, w, h), dst, x, k, (all, off));
+    }
+}
+
+/// One pass of [`square_filter`] along a line of `n` pixels of `src` from `start`, `stride`
+/// apart, into the same places of `dst` from `dst_start`: a running count of the set pixels
+/// within `k` of each, pixels off the line counting `off` (0 or 1).
+fn line_filter(
+    src: &[u8],
+    (start, stride, n): (usize, usize, usize),
+    dst: &mut [u8],
+    dst_start: usize,
+    k: usize,
+    (all, off): (bool, usize),
+) {
+    let at = |j: isize| {
+        if j < 0 || j as usize >= n {
+            off
+        } else {
+            usize::from(src[start + j as usize * stride])
+        }
+    };
+    let k = k as isize;
+    let mut count: usize = (-k..=k).map(at).sum();
+    for i in 0..n as isize {
+        if i > 0 {
+            count = count + at(i + k) - at(i - k - 1);
+        }
+        let set = if all {
+            count as isize == 2 * k + 1
+        } else {
+            count > 0
+        };
+        dst[dst_start + i as usize * stride] = u8::from(set);
+    }
 }
 
 fn union(parent: &mut [u32], a: u32, b: u32) -> u32 {
@@ -396,6 +496,68 @@ impl Labeler {
             return blob.centroid;
         }
         Point2::new(sx / sw, sy / sw)
+    }
+
+    /// The part of `blob` (from the last [`Labeler::blobs`] run on the same `weights` and
+    /// `rect`) that a square of side `2 * k + 1` fits in (its morphological opening): the
+    /// blob without the lines thinner than the square that run out of it, such as a twig
+    /// of its colour that a marker hangs from. `None` when nothing of it is left.
+    pub(crate) fn opened(
+        &mut self,
+        weights: &[f32],
+        rect: PixelRect,
+        blob: &Blob,
+        k: usize,
+    ) -> Option<Blob> {
+        let area = self.area;
+        let box_ = blob.bounds.intersect(&area);
+        if box_.is_empty() || weights.len() != rect.area() as usize || k == 0 {
+            return None;
+        }
+        let (bw, bh) = (box_.width as usize, box_.height as usize);
+        let w = area.width as usize;
+        let mut mask = std::mem::take(&mut self.mask);
+        mask.clear();
+        for y in box_.y..box_.bottom() as i32 {
+            for x in box_.x..box_.right() as i32 {
+                let l = self.labels[(y - area.y) as usize * w + (x - area.x) as usize];
+                mask.push(u8::from(
+                    l != NONE && find(&mut self.parent, l) == blob.label,
+                ));
+            }
+        }
+        // Holes of up to two pixels closed first (a 3x3 square's dilation, then its
+        // erosion with off-box pixels counting as set), so that the blob's holes (pixels with
+        // no data in a registered colour image) do not open it up; then erosion by the
+        // square (every pixel within `k` along both axes set; none off the box is), then
+        // dilation of that by the square, kept to the blob's own pixels.
+        let mut eroded = std::mem::take(&mut self.eroded);
+        let mut opened = std::mem::take(&mut self.opened);
+        let mut rows = std::mem::take(&mut self.rows);
+        square_filter(&mask, &mut opened, &mut rows, (bw, bh), 1, (false, false));
+        square_filter(&opened, &mut eroded, &mut rows, (bw, bh), 1, (true, true));
+        std::mem::swap(&mut opened, &mut eroded);
+        square_filter(&opened, &mut eroded, &mut rows, (bw, bh), k, (true, false));
+        square_filter(&eroded, &mut opened, &mut rows, (bw, bh), k, (false, false));
+        self.rows = rows;
+        let stride = rect.width as usize;
+        let mut sums = [0.0f64; 7];
+        let mut bounds = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
+        for y in 0..bh {
+            for x in 0..bw {
+                if opened[y * bw + x] == 1 && mask[y * bw + x] == 1 {
+                    let (ix, iy) = (box_.x + x as i32, box_.y + y as i32);
+                    let v = f64::from(
+                        weights[(iy - rect.y) as usize * stride + (ix - rect.x) as usize],
+                    );
+                    accumulate(&mut sums, &mut bounds, ix, iy, v);
+                }
+            }
+        }
+        self.mask = mask;
+        self.eroded = eroded;
+        self.opened = opened;
+        (sums[1] > 0.0).then(|| Blob::from_sums(&sums, &bounds, blob.label))
     }
 
     /// Share the pixels of `blob` (from the last [`Labeler::blobs`] run on the same
@@ -682,6 +844,102 @@ mod tests {
         }
         out.sort_by(|a, b| b.1.total_cmp(&a.1));
         out
+    }
+
+    #[test]
+    fn square_filters_equal_a_pixel_by_pixel_check_on_random_masks() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let (mut out, mut rows) = (Vec::new(), Vec::new());
+        for _ in 0..40 {
+            let (w, h) = (1 + (next() % 23) as usize, 1 + (next() % 17) as usize);
+            let src: Vec<u8> = (0..w * h).map(|_| u8::from(next() % 3 != 0)).collect();
+            for k in 1..=3usize {
+                for mode in [(true, true), (true, false), (false, false)] {
+                    square_filter(&src, &mut out, &mut rows, (w, h), k, mode);
+                    for y in 0..h {
+                        for x in 0..w {
+                            let (mut all, mut any) = (true, false);
+                            for dy in -(k as isize)..=k as isize {
+                                for dx in -(k as isize)..=k as isize {
+                                    let (xx, yy) = (x as isize + dx, y as isize + dy);
+                                    let v =
+                                        if xx < 0 || yy < 0 || xx >= w as isize || yy >= h as isize
+                                        {
+                                            mode.1
+                                        } else {
+                                            src[yy as usize * w + xx as usize] == 1
+                                        };
+                                    all &= v;
+                                    any |= v;
+                                }
+                            }
+                            let want = if mode.0 { all } else { any };
+                            assert_eq!(
+                                out[y * w + x] == 1,
+                                want,
+                                "{w}x{h} k {k} {mode:?} at {x},{y}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn opening_drops_a_thin_tail_and_keeps_discs_and_streaks_whole() {
+        // A disc of radius 7 px with a twig 2 px wide and 24 px long running out of it, a
+        // streak 14 px wide and 40 long, a disc alone, and a disc with a hole in it.
+        let rect = PixelRect::new(0, 0, 160, 60);
+        let disc = Point2::new(20.0, 20.0);
+        let alone = Point2::new(130.0, 20.0);
+        let holed = Point2::new(130.0, 45.0);
+        let mut weights = vec![0.0f32; rect.area() as usize];
+        for y in 0..60 {
+            for x in 0..160 {
+                let p = Point2::new(f64::from(x), f64::from(y));
+                let twig = (26..50).contains(&x) && (19..21).contains(&y);
+                let streak = (60..100).contains(&x) && (13..27).contains(&y);
+                let hole = x == 131 && y == 45;
+                if ((p - disc).norm() <= 7.0 || twig || streak || (p - alone).norm() <= 7.0)
+                    || ((p - holed).norm() <= 7.0 && !hole)
+                {
+                    weights[(y * 160 + x) as usize] = 200.0;
+                }
+            }
+        }
+        let mut l = Labeler::default();
+        let blobs = l.blobs(&weights, rect, rect, 50.0, 2, 1);
+        assert_eq!(blobs.len(), 4, "{blobs:?}");
+        let near = |c: Point2<f64>| {
+            *blobs
+                .iter()
+                .min_by(|a, b| (a.centroid - c).norm().total_cmp(&(b.centroid - c).norm()))
+                .unwrap()
+        };
+        let tailed = near(disc);
+        assert!((tailed.centroid - disc).norm() > 4.0, "{tailed:?}");
+        let part = l.opened(&weights, rect, &tailed, 2).unwrap();
+        assert!((part.centroid - disc).norm() < 0.3, "{part:?}");
+        assert!(part.pixels < tailed.pixels && part.pixels > 140, "{part:?}");
+        // A streak, a disc and a disc with a hole keep their centres (the hole's disc within a
+        // few hundredths of a pixel of its centre less the hole).
+        for (c, tolerance) in [(Point2::new(79.5, 19.5), 1e-9), (alone, 1e-9), (holed, 0.1)] {
+            let b = near(c);
+            let part = l.opened(&weights, rect, &b, 2).unwrap();
+            assert!(
+                (part.centroid - b.centroid).norm() < tolerance,
+                "{b:?} {part:?}"
+            );
+        }
+        // No square, no part.
+        assert!(l.opened(&weights, rect, &tailed, 0).is_none());
     }
 
     #[test]

@@ -440,6 +440,9 @@ pub(super) fn candidates_in(
             let pieces = (m.reference.pixels * BLOB_MIN_PIXELS).ceil() as usize;
             steady.centroid =
                 labeler.edge_centroid(&region.weights, region.rect, b, window, pieces);
+            let steady = without_tail(labeler, region, b, &m.reference)
+                .filter(|part| plausible(part, &m.reference))
+                .unwrap_or(steady);
             out.push(measured_at(region, m, &steady));
             if let Some(part) = own.and_then(|p| pair_part(labeler, region, m, b, p, partners)) {
                 out.push(measured_at(region, m, &part));
@@ -456,6 +459,70 @@ pub(super) fn candidates_in(
         }
     }
     out
+}
+
+/// A blob at least this many times as long as it is wide may be a marker with a tail ...
+const TAIL_MIN_ELONGATION: f64 = 1.2;
+/// ... a line of its colour at most this share of the marker's width wide running out of it
+/// (a twig it hangs from: 2-4 px wide against markers of 8-20 px), which an opening by a
+/// square that wide removes ...
+const TAIL_MAX_WIDTH: f64 = 0.35;
+/// ... when the opening keeps at least this share of the marker's pixels (or of the blob's,
+/// if fewer: a marker broken up by holes is not opened away) ...
+const TAIL_KEPT_SHARE: f64 = 0.5;
+/// ... and moves its centroid at least this far (pixels) ...
+const TAIL_MIN_SHIFT_PX: f64 = 0.5;
+/// The least half-side (pixels) of the opening's square: a marker under about 9 px across
+/// (the square 3 px wide) is not opened, since its own rim and the splats of a projection
+/// image are as thin as a twig there (the pipeline's 7 px markers: the worst within 3 px
+/// 98.0 -> 90.4 % when they were).
+const TAIL_MIN_HALF_SIDE_PX: usize = 2;
+/// ... whose dropped pixels make a line: their minor axis (four standard deviations) at most
+/// this share of the marker's width (the rim of a ragged marker the opening trims all round
+/// is as wide as the marker) ...
+const TAIL_REST_WIDTH: f64 = 0.5;
+/// ... at least this many marker widths long (a crumb of a ragged rim is not a line) ...
+const TAIL_REST_LENGTH: f64 = 0.8;
+/// ... lying off to one side: their centroid at least this many marker widths from the
+/// disc's (crumbs trimmed off both ends of a ragged marker balance about its centre) ...
+const TAIL_REST_OFFSET: f64 = 0.6;
+/// ... and leaves a disc: at most this many times the marker's width long. A motion streak
+/// the opening trims (its trailing end lies where the marker was in the frame before, where
+/// it has no streak weight, so it is thinner and paler there) stays a streak, and is measured
+/// as it is.
+const TAIL_DISC_LENGTH: f64 = 1.4;
+
+/// The marker's part of `blob` (from the last labelling of `region`) without a thin tail of
+/// its colour running out of it, when it has one: a marker hangs from a twig, and bark's
+/// hue is a red marker's neighbour, so its blob runs on along the twig and the blob's
+/// centroid is pulled toward it by a few pixels (3-5 px on the third generator's
+/// sequences, `docs/validation.md`). The blob's opening by a square [`TAIL_MAX_WIDTH`] of
+/// the marker's width wide ([`Labeler::opened`]) keeps a disc, a streak and a marker partly
+/// covered about as they are, and drops lines thinner than that. `None` when the blob has
+/// no such tail, or when what is left is not a disc.
+fn without_tail(
+    labeler: &mut Labeler,
+    region: &Region,
+    blob: &Blob,
+    reference: &Reference,
+) -> Option<Blob> {
+    let width_px = reference.width_px;
+    if blob.length_px() < TAIL_MIN_ELONGATION * blob.width_px().max(1.0) {
+        return None;
+    }
+    let k = (0.5 * TAIL_MAX_WIDTH * width_px).round() as usize;
+    if k < TAIL_MIN_HALF_SIDE_PX {
+        return None;
+    }
+    let part = labeler.opened(&region.weights, region.rect, blob, k)?;
+    let rest = blob.without(&part)?;
+    (part.pixels as f64 >= TAIL_KEPT_SHARE * reference.pixels.min(blob.pixels as f64)
+        && (part.centroid - blob.centroid).norm() >= TAIL_MIN_SHIFT_PX
+        && part.length_px() <= TAIL_DISC_LENGTH * width_px
+        && rest.width_px() <= TAIL_REST_WIDTH * width_px
+        && rest.length_px() >= TAIL_REST_LENGTH * width_px.max(rest.width_px())
+        && (rest.centroid - part.centroid).norm() >= TAIL_REST_OFFSET * width_px)
+        .then_some(part)
 }
 
 /// The part of `blob` nearer to `own` than to any of `others` (weighted 2-means from those

@@ -8,8 +8,9 @@
 //!    hidden behind another of its look) goes on at the acceleration of its last positions.
 //! 2. **Quick pass**: mean-shift from the prediction over a region three windows wide; the
 //!    measurement is the weighted centroid of the blob the window converged on (for a marker
-//!    smeared by motion blur, the streak's centre), or the window's centroid when no
-//!    marker-sized blob is there. A marker found in the last frame is `tracked` when the
+//!    smeared by motion blur, the streak's centre; for a marker whose blob runs on along a
+//!    thin twig of its hue, the disc the blob's opening leaves), or the window's centroid
+//!    when no marker-sized blob is there. A marker found in the last frame is `tracked` when the
 //!    measurement lies in the gate, looks like the marker (its [`Observation::confidence`] is
 //!    at least [`TrackerConfig::min_confidence`]), no other marker holds that place or is
 //!    nearer to it, after a jump of more than half a window, its surroundings still look
