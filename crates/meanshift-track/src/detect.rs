@@ -60,6 +60,17 @@ impl Blob {
         }
     }
 
+    /// The blob's weighted second moments `[xx, xy, yy]` about `c` (not divided by its mass):
+    /// its central moments moved there (parallel axes).
+    fn moments_about(&self, c: Point2<f64>) -> [f64; 3] {
+        let d = self.centroid - c;
+        [
+            self.mass * (self.spread[0] + d.x * d.x),
+            self.mass * (self.spread[1] + d.x * d.y),
+            self.mass * (self.spread[2] + d.y * d.y),
+        ]
+    }
+
     /// The two blobs as one (pooled moments): the fragments of a marker split by a twig.
     pub(crate) fn merged(&self, other: &Blob) -> Blob {
         let m = self.mass + other.mass;
@@ -69,15 +80,7 @@ impl Blob {
         let c = Point2::from(
             (self.centroid.coords * self.mass + other.centroid.coords * other.mass) / m,
         );
-        let part = |b: &Blob| {
-            let d = b.centroid - c;
-            [
-                b.mass * (b.spread[0] + d.x * d.x),
-                b.mass * (b.spread[1] + d.x * d.y),
-                b.mass * (b.spread[2] + d.y * d.y),
-            ]
-        };
-        let (a, b) = (part(self), part(other));
+        let (a, b) = (self.moments_about(c), other.moments_about(c));
         let (x0, y0) = (
             self.bounds.x.min(other.bounds.x),
             self.bounds.y.min(other.bounds.y),
@@ -105,17 +108,8 @@ impl Blob {
         }
         let c =
             Point2::from((self.centroid.coords * self.mass - part.centroid.coords * part.mass) / m);
-        // Second moments about the rest's centroid: the whole's less the part's, each moved
-        // there (parallel axes).
-        let about = |b: &Blob| {
-            let d = b.centroid - c;
-            [
-                b.mass * (b.spread[0] + d.x * d.x),
-                b.mass * (b.spread[1] + d.x * d.y),
-                b.mass * (b.spread[2] + d.y * d.y),
-            ]
-        };
-        let (a, b) = (about(self), about(part));
+        // Second moments about the rest's centroid: the whole's less the part's.
+        let (a, b) = (self.moments_about(c), part.moments_about(c));
         Some(Blob {
             pixels,
             mass: m,
