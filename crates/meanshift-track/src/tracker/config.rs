@@ -72,7 +72,8 @@ pub struct TrackerConfig {
     /// 24 and 16), so that a blurred, paler marker still counts; the recovering tracker
     /// raises a marker's saturation floor halfway to its core where the first frame shows
     /// much paler pixels of its look (a reddish-brown look-alike touching it or, elsewhere,
-    /// pixels of its hue under 0.6 of its core saturation, such as bark). Default:
+    /// pixels of its hue under 0.6 of its core saturation, or under 0.72 where they make a
+    /// surface of ten markers' worth or more, such as bark). Default:
     /// saturation 60..=255, value 32..=255, any hue.
     pub hsv_mask: ChannelRange,
     /// Fixed or adaptive window. Default: fixed.

@@ -217,7 +217,9 @@ impl Tracker {
     /// runs on into the bark). Halfway between the core and their median, never below
     /// `mask`'s. `None` for one-channel and kernel models, where there are too few, and
     /// where their median is not under [`BLUR_KEPT_SATURATION`] of the core (a look-alike
-    /// only somewhat paler is told apart by the look-alike masks). With no floor, also the
+    /// only somewhat paler is told apart by the look-alike masks), or, for an extended
+    /// surface of them ([`SURFACE_PALER_MARKERS`] markers' worth or more), under
+    /// [`SURFACE_KEPT_SATURATION`]. With no floor, also the
     /// blobs of the marker's look over the whole frame that weighing it found (the marker's
     /// own among them), which [`Tracker::learn_distractors`] would weigh the frame again for.
     fn background_floor(
@@ -271,10 +273,14 @@ impl Tracker {
             let mid = paler.len() / 2;
             f64::from(*paler.select_nth_unstable(mid).1)
         });
+        let surface = paler.len() as f64 >= SURFACE_PALER_MARKERS * state.reference.pixels.max(1.0);
+        let kept = if surface {
+            SURFACE_KEPT_SATURATION
+        } else {
+            BLUR_KEPT_SATURATION
+        };
         match median {
-            Some(median) if median < BLUR_KEPT_SATURATION * core => {
-                (Some(floor_between(core, median, mask)), None)
-            }
+            Some(median) if median < kept * core => (Some(floor_between(core, median, mask)), None),
             _ => {
                 let blobs = candidates_in(
                     &mut self.region,
@@ -569,6 +575,36 @@ mod tests {
                 image::Rgb([100, 110, 95])
             }
         })
+    }
+
+    /// [`red_over_bark`] with bark only about a third paler than the marker (saturation
+    /// 153 against 225, hue 179: as pale as the marker's own streak at a release), over
+    /// x 80..176 and the whole height: an extended surface, 30 markers' worth of it.
+    fn red_over_pale_bark(marker_x: f64) -> RgbImage {
+        RgbImage::from_fn(176, 80, |x, y| {
+            let (dx, dy) = (f64::from(x) - marker_x, f64::from(y) - 40.0);
+            if dx * dx + dy * dy <= 49.0 {
+                red_marker(x, y)
+            } else if x >= 80 {
+                if x % 5 == 0 {
+                    image::Rgb([130, 52, 54])
+                } else {
+                    image::Rgb([160, 64, 66])
+                }
+            } else {
+                image::Rgb([100, 110, 95])
+            }
+        })
+    }
+
+    #[test]
+    fn a_marker_swung_onto_a_surface_of_its_hue_a_third_paler_is_measured_on_itself() -> Result<()>
+    {
+        let mut t = marker_a(&red_over_pale_bark(40.0), PixelRect::new(32, 32, 17, 17))?;
+        // Onto the surface and 50 px into it, 4 px a frame: without a raised floor the
+        // marker's blob would be the whole surface.
+        let path: Vec<f64> = (1..=22).map(|k| 40.0 + 4.0 * f64::from(k)).collect();
+        follows_the_path(&mut t, &path, 40.0, 1.0, red_over_pale_bark)
     }
 
     #[test]

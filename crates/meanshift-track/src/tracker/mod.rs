@@ -386,6 +386,16 @@ const BACKGROUND_PALER_MARKERS: f64 = 1.0;
 /// saturation floor. A blurred streak under that floor still counts by its blend with the
 /// background (streak weights).
 const BLUR_KEPT_SATURATION: f64 = 0.6;
+/// Share of a marker's core saturation under which an extended surface of paler pixels of
+/// its look (at least [`SURFACE_PALER_MARKERS`] markers' worth: bark of its hue, not a few
+/// look-alikes or colour fringes) raises its saturation floor, though a blurred streak of
+/// the marker is as pale: a marker's blob runs on into such a surface, which the look-alike
+/// masks (made for marker-sized blobs) cannot keep out, and the streak still counts by its
+/// blend with the background.
+const SURFACE_KEPT_SATURATION: f64 = 0.72;
+/// Paler pixels, in markers' worth, that make an extended surface (see
+/// [`SURFACE_KEPT_SATURATION`]).
+const SURFACE_PALER_MARKERS: f64 = 10.0;
 /// Share of a cut quick-pass blob's box that a detection blob must hold to be that blob
 /// seen whole (see `holds_whole`).
 const WHOLE_HOLDS_SHARE: f64 = 0.8;
