@@ -33,6 +33,14 @@ const STREAK_FULL_COVERAGE: f32 = 0.5;
 /// Largest distance (8-bit levels) of a streak pixel from the line between background and
 /// marker colour, and as a share of the coverage times the contrast (colour noise, JPEG).
 const STREAK_RESIDUAL: [f32; 2] = [15.0, 0.3];
+/// The least brightness a streak pixel may imply for what covered it, as a share of the
+/// marker's mean colour, unless the marker's own darkest pixels on the first frame are
+/// darker (see `Tracker` `darkest_shade`): a streak pixel is a mean of the marker's surface
+/// along its path, never darker than its darkest part, while a dark twig's or branch's smear
+/// blended with the sky lies on the same mixing line at about half the marker's brightness
+/// (the third generator's bark twigs imply 0.53 of a red marker's colour; its shaded
+/// spheres' darkest pixels 0.56-0.64, `docs/validation.md`).
+pub(crate) const STREAK_MIN_SHADE: f32 = 0.6;
 /// Pixel step of the sampling pass of a sparse [`Region::fill`], along rows and between rows: a
 /// blob two pixels across in both directions holds a sampled pixel.
 const SPARSE_STEP_PX: usize = 2;
@@ -60,6 +68,9 @@ pub(crate) struct Streak<'a> {
     pub(crate) previous: &'a RgbImage,
     /// The marker's mean colour (RGB).
     pub(crate) colour: [f32; 3],
+    /// The least brightness, as a share of `colour` (its projection on it), of the colour a
+    /// streak pixel implies for what covered it (see [`Streak::raise_row`]).
+    pub(crate) shade: f32,
 }
 
 impl Streak<'_> {
@@ -108,18 +119,26 @@ impl Streak<'_> {
             }
         }
         let m = self.colour;
+        let mm = m[0] * m[0] + m[1] * m[1] + m[2] * m[2];
+        let shade = self.shade;
         for i in 0..N {
             let d = [m[0] - b[0][i], m[1] - b[1][i], m[2] - b[2][i]];
             let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
             let e = [p[0][i] - b[0][i], p[1][i] - b[1][i], p[2][i] - b[2][i]];
             let ed = e[0] * d[0] + e[1] * d[1] + e[2] * d[2];
             let a = ed / dd;
+            // The colour the pixel implies for what covered it, `b + e / a`, at least
+            // `shade` of the marker's colour along it: (b + e / a) . m >= shade m . m.
+            let em = e[0] * m[0] + e[1] * m[1] + e[2] * m[2];
+            let bm = b[0][i] * m[0] + b[1][i] * m[1] + b[2][i] * m[2];
+            let bright = em >= a * (shade * mm - bm);
             let r = [e[0] - a * d[0], e[1] - a * d[1], e[2] - a * d[2]];
             let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
             let limit = STREAK_RESIDUAL[0].max(STREAK_RESIDUAL[1] * a.min(1.0) * dd.sqrt());
             let on_line = dd >= STREAK_MIN_CONTRAST * STREAK_MIN_CONTRAST
                 && ed >= STREAK_MIN_COVERAGE * dd
-                && rr <= limit * limit;
+                && rr <= limit * limit
+                && bright;
             let streak = if on_line {
                 255.0 * (a / STREAK_FULL_COVERAGE).min(1.0)
             } else {
@@ -1064,6 +1083,7 @@ mod tests {
                 let streak = Streak {
                     previous: &previous,
                     colour: [200.0, 35.0, 20.0],
+                    shade: STREAK_MIN_SHADE,
                 };
                 let open = PixelFilter {
                     depth: None,
@@ -1121,7 +1141,7 @@ mod tests {
 
     /// The streak weight of one pixel as its definition reads, for the plane loop to be
     /// checked against.
-    fn streak_of(m: [f32; 3], p: [f32; 3], b: [f32; 3]) -> f32 {
+    fn streak_of(m: [f32; 3], shade: f32, p: [f32; 3], b: [f32; 3]) -> f32 {
         let d = [m[0] - b[0], m[1] - b[1], m[2] - b[2]];
         let e = [p[0] - b[0], p[1] - b[1], p[2] - b[2]];
         let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
@@ -1139,6 +1159,12 @@ mod tests {
         if rr > limit * limit {
             return 0.0;
         }
+        let mm = m[0] * m[0] + m[1] * m[1] + m[2] * m[2];
+        let em = e[0] * m[0] + e[1] * m[1] + e[2] * m[2];
+        let bm = b[0] * m[0] + b[1] * m[1] + b[2] * m[2];
+        if em < a * (shade * mm - bm) {
+            return 0.0;
+        }
         255.0 * (a / STREAK_FULL_COVERAGE).min(1.0)
     }
 
@@ -1148,6 +1174,7 @@ mod tests {
         let streak = Streak {
             previous: &previous,
             colour: [210.0, 30.0, 25.0],
+            shade: STREAK_MIN_SHADE,
         };
         // Rows of many lengths (vector blocks and remainders), pixels on and off the line
         // between each background and the marker's colour.
@@ -1169,13 +1196,39 @@ mod tests {
             let mut raised = 0;
             for i in 0..n {
                 let f = |v: &[u8]| [v[3 * i], v[3 * i + 1], v[3 * i + 2]].map(f32::from);
-                let s = streak_of(streak.colour, f(&row), f(&background));
+                let s = streak_of(streak.colour, streak.shade, f(&row), f(&background));
                 assert_eq!(weights[i], before[i].max(s), "length {n}, pixel {i}");
                 raised += usize::from(s > before[i]);
             }
             if n >= 8 {
                 assert!(raised > 0, "length {n}: no pixel on a streak");
             }
+        }
+    }
+
+    /// Over a sky, a dark brown twig's smear lies near the line from the sky to a red
+    /// marker's colour (both darken green and blue the most) and would pass as a streak of
+    /// it; the colour it implies for what covered it is about half the marker's brightness,
+    /// darker than the marker's own shading, and it is turned down. The marker's streak,
+    /// and the streak of its darkest shade, are not.
+    #[test]
+    fn a_dark_twigs_smear_is_not_a_streak_of_a_red_marker() {
+        let sky = [130.0f32, 185.0, 225.0];
+        let red = [129.0f32, 28.0, 30.0];
+        let twig = [62.0f32, 39.0, 22.0];
+        let blend =
+            |c: [f32; 3], a: f32| [0, 1, 2].map(|k| (a * c[k] + (1.0 - a) * sky[k]).round());
+        for a in [0.2f32, 0.35, 0.5, 0.8] {
+            // Without the shade test the twig's smear is on the line: the test is what
+            // turns it down.
+            assert!(
+                streak_of(red, 0.0, blend(twig, a), sky) > 0.0,
+                "coverage {a}"
+            );
+            assert_eq!(streak_of(red, STREAK_MIN_SHADE, blend(twig, a), sky), 0.0);
+            assert!(streak_of(red, STREAK_MIN_SHADE, blend(red, a), sky) > 0.0);
+            let darkest = red.map(|v| 0.65 * v);
+            assert!(streak_of(red, STREAK_MIN_SHADE, blend(darkest, a), sky) > 0.0);
         }
     }
 
@@ -1305,6 +1358,7 @@ mod tests {
             streak: Some(Streak {
                 previous,
                 colour: [210.0, 30.0, 25.0],
+                shade: STREAK_MIN_SHADE,
             }),
         };
         let (mut full, mut sparse) = (Region::default(), Region::default());

@@ -91,6 +91,7 @@ pub(super) fn fill(
         .map(|previous| Streak {
             previous,
             colour: m.colour,
+            shade: m.shade,
         });
     let filter = PixelFilter {
         depth: gate,
@@ -223,6 +224,42 @@ pub(super) fn hole_gap(frame: &RgbImage, window: PixelRect) -> usize {
 
 /// Mean RGB of the pixels of `window` whose weight is at least `threshold` (the marker's
 /// own), or of the whole window if none is.
+/// The share of the marker's darkest pixels, taken at this quantile of its pixels on the
+/// first frame (a shaded sphere's shadow side; a few pixels of noise lower).
+const DARKEST_QUANTILE: f64 = 0.02;
+
+/// How dark the marker's own colour gets on the first frame, as a share of its mean colour
+/// `colour` (the projection of each pixel at or above `threshold` in `window` on `colour`,
+/// over `colour`'s own): the [`DARKEST_QUANTILE`] of its pixels. `None` without pixels.
+pub(super) fn darkest_shade(
+    frame: &RgbImage,
+    region: &Region,
+    window: PixelRect,
+    threshold: f32,
+    colour: [f32; 3],
+) -> Option<f32> {
+    let w = window.intersect(&region.rect);
+    let mm: f32 = colour.iter().map(|c| c * c).sum();
+    if mm <= 0.0 {
+        return None;
+    }
+    let mut shades = Vec::with_capacity(w.area() as usize);
+    for y in w.y..w.bottom() as i32 {
+        for x in w.x..w.right() as i32 {
+            if region.weights[region.index(x, y)] >= threshold {
+                let p = frame.get_pixel(x as u32, y as u32).0;
+                let pm: f32 = (0..3).map(|c| f32::from(p[c]) * colour[c]).sum();
+                shades.push(pm / mm);
+            }
+        }
+    }
+    if shades.is_empty() {
+        return None;
+    }
+    let k = ((shades.len() - 1) as f64 * DARKEST_QUANTILE).round() as usize;
+    Some(*shades.select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1)
+}
+
 pub(super) fn mean_colour(
     frame: &RgbImage,
     region: &Region,
@@ -784,4 +821,48 @@ pub(super) fn window_depth(depth: &DepthView<'_>, window: PixelRect) -> Option<f
     let mid = values.len() / 2;
     values.select_nth_unstable_by(mid, f64::total_cmp);
     Some(values[mid])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A marker whose left half is lit and right half in shadow at half the brightness:
+    /// its mean colour is three quarters of the lit one, so its darkest shade is 2/3 of the
+    /// mean; pixels under the blob threshold (the background) do not count.
+    #[test]
+    fn the_darkest_shade_is_that_of_the_markers_shadow_side_against_its_mean() {
+        let lit = [200u8, 40, 30];
+        let frame = RgbImage::from_fn(20, 20, |x, y| {
+            let inside = (5..15).contains(&x) && (5..15).contains(&y);
+            match (inside, x < 10) {
+                (true, true) => image::Rgb(lit),
+                (true, false) => image::Rgb(lit.map(|v| v / 2)),
+                (false, _) => image::Rgb([10, 10, 10]),
+            }
+        });
+        let rect = PixelRect::new(0, 0, 20, 20);
+        let mut region = Region::default();
+        region.rect = rect;
+        region.weights = (0..400)
+            .map(|k| {
+                let (x, y) = (k % 20, k / 20);
+                if (5..15).contains(&x) && (5..15).contains(&y) {
+                    255.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let colour = mean_colour(&frame, &region, rect, 100.0);
+        let darkest = darkest_shade(&frame, &region, rect, 100.0, colour).unwrap_or(0.0);
+        assert!(
+            (darkest - 2.0 / 3.0).abs() < 0.01,
+            "{darkest} of {colour:?}"
+        );
+        let mut empty = Region::default();
+        empty.rect = rect;
+        empty.weights = vec![0.0; 400];
+        assert_eq!(darkest_shade(&frame, &empty, rect, 100.0, colour), None);
+    }
 }

@@ -113,6 +113,15 @@ impl Tracker {
         learn_blob(&mut state, &self.region, &mut self.labeler, w);
         state.reference.gap = state.reference.gap.max(hole_gap(frame, w));
         state.colour = mean_colour(frame, &self.region, w, state.reference.threshold);
+        if let Some(darkest) = darkest_shade(
+            frame,
+            &self.region,
+            w,
+            state.reference.threshold,
+            state.colour,
+        ) {
+            state.shade = darkest.min(STREAK_MIN_SHADE);
+        }
         let mode = self.region.locate(
             &state.model,
             &config.criteria,

@@ -64,7 +64,7 @@ use crate::kalman::Kalman;
 use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
 use crate::model::{AppearanceModel, MarkerModel, marker_mask};
 use crate::rect::PixelRect;
-use crate::region::{Lookup, Mode, PixelFilter, Region, Sparse, Streak};
+use crate::region::{Lookup, Mode, PixelFilter, Region, STREAK_MIN_SHADE, Sparse, Streak};
 use crate::swing::Swing;
 use crate::template::{Template, TemplateScratch};
 
@@ -508,6 +508,10 @@ struct MarkerState {
     core_saturation: Option<f64>,
     /// Mean colour (RGB) of the marker's pixels on the first frame.
     colour: [f32; 3],
+    /// The least brightness a streak pixel of the marker may imply, as a share of `colour`
+    /// (see `Streak::shade`): [`STREAK_MIN_SHADE`], or the marker's own darkest shade on
+    /// the first frame where that is darker (see `darkest_shade`).
+    shade: f32,
 }
 
 /// A measurement: where, how well it looks like the marker, and the pixels it holds.

@@ -45,6 +45,7 @@ impl MarkerState {
             distractors: Vec::new(),
             core_saturation: None,
             colour: [0.0; 3],
+            shade: STREAK_MIN_SHADE,
             template: None,
         }
     }
