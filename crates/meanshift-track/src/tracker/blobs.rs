@@ -222,8 +222,23 @@ pub(super) fn hole_gap(frame: &RgbImage, window: PixelRect) -> usize {
     }
 }
 
-/// Mean RGB of the pixels of `window` whose weight is at least `threshold` (the marker's
-/// own), or of the whole window if none is.
+/// The pixels of `window` within `region`, each with whether its weight is at least
+/// `threshold` (the marker's own), row by row.
+fn window_pixels<'a>(
+    frame: &'a RgbImage,
+    region: &'a Region,
+    window: PixelRect,
+    threshold: f32,
+) -> impl Iterator<Item = ([u8; 3], bool)> + 'a {
+    let w = window.intersect(&region.rect);
+    (w.y..w.bottom() as i32).flat_map(move |y| {
+        (w.x..w.right() as i32).map(move |x| {
+            let p = frame.get_pixel(x as u32, y as u32).0;
+            (p, region.weights[region.index(x, y)] >= threshold)
+        })
+    })
+}
+
 /// The share of the marker's darkest pixels, taken at this quantile of its pixels on the
 /// first frame (a shaded sphere's shadow side; a few pixels of noise lower).
 const DARKEST_QUANTILE: f64 = 0.02;
@@ -238,21 +253,14 @@ pub(super) fn darkest_shade(
     threshold: f32,
     colour: [f32; 3],
 ) -> Option<f32> {
-    let w = window.intersect(&region.rect);
     let mm: f32 = colour.iter().map(|c| c * c).sum();
     if mm <= 0.0 {
         return None;
     }
-    let mut shades = Vec::with_capacity(w.area() as usize);
-    for y in w.y..w.bottom() as i32 {
-        for x in w.x..w.right() as i32 {
-            if region.weights[region.index(x, y)] >= threshold {
-                let p = frame.get_pixel(x as u32, y as u32).0;
-                let pm: f32 = (0..3).map(|c| f32::from(p[c]) * colour[c]).sum();
-                shades.push(pm / mm);
-            }
-        }
-    }
+    let mut shades: Vec<f32> = window_pixels(frame, region, window, threshold)
+        .filter(|(_, own)| *own)
+        .map(|(p, _)| (0..3).map(|c| f32::from(p[c]) * colour[c]).sum::<f32>() / mm)
+        .collect();
     if shades.is_empty() {
         return None;
     }
@@ -260,28 +268,25 @@ pub(super) fn darkest_shade(
     Some(*shades.select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1)
 }
 
+/// Mean RGB of the pixels of `window` whose weight is at least `threshold` (the marker's
+/// own), or of the whole window if none is.
 pub(super) fn mean_colour(
     frame: &RgbImage,
     region: &Region,
     window: PixelRect,
     threshold: f32,
 ) -> [f32; 3] {
-    let w = window.intersect(&region.rect);
     let (mut sum, mut all, mut n, mut n_all) = ([0.0f64; 3], [0.0f64; 3], 0.0f64, 0.0f64);
-    for y in w.y..w.bottom() as i32 {
-        for x in w.x..w.right() as i32 {
-            let p = frame.get_pixel(x as u32, y as u32).0;
-            let own = region.weights[region.index(x, y)] >= threshold;
-            for c in 0..3 {
-                all[c] += f64::from(p[c]);
-                if own {
-                    sum[c] += f64::from(p[c]);
-                }
-            }
-            n_all += 1.0;
+    for (p, own) in window_pixels(frame, region, window, threshold) {
+        for c in 0..3 {
+            all[c] += f64::from(p[c]);
             if own {
-                n += 1.0;
+                sum[c] += f64::from(p[c]);
             }
+        }
+        n_all += 1.0;
+        if own {
+            n += 1.0;
         }
     }
     let (s, k) = if n > 0.0 {

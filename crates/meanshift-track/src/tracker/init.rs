@@ -566,44 +566,37 @@ mod tests {
         Ok(())
     }
 
-    /// A red disc of radius 7 px at (`marker_x`, 40) on grey, and a band of bark of the
-    /// red's hue (hue 178, saturation about 90 against the red's 225) over x 90..130 with
-    /// a darker streak every 5 px, as reddish bark beside a red marker.
-    fn red_over_bark(marker_x: f64) -> RgbImage {
+    /// A red disc of radius 7 px at (`marker_x`, 40) on grey in front of bark of the red's
+    /// hue over the columns `bark` holds, in `colours` (the first on every fifth column, a
+    /// darker streak; the second elsewhere).
+    fn red_over(marker_x: f64, bark: impl Fn(u32) -> bool, colours: [[u8; 3]; 2]) -> RgbImage {
         RgbImage::from_fn(176, 80, |x, y| {
             let (dx, dy) = (f64::from(x) - marker_x, f64::from(y) - 40.0);
             if dx * dx + dy * dy <= 49.0 {
                 red_marker(x, y)
-            } else if (90..130).contains(&x) {
-                if x % 5 == 0 {
-                    image::Rgb([120, 76, 78])
-                } else {
-                    image::Rgb([150, 95, 98])
-                }
+            } else if bark(x) {
+                image::Rgb(colours[usize::from(x % 5 != 0)])
             } else {
                 image::Rgb([100, 110, 95])
             }
         })
     }
 
-    /// [`red_over_bark`] with bark only about a third paler than the marker (saturation
-    /// 153 against 225, hue 179: as pale as the marker's own streak at a release), over
-    /// x 80..176 and the whole height: an extended surface, 30 markers' worth of it.
+    /// [`red_over`] a band of bark (hue 178, saturation about 90 against the red's 225) over
+    /// x 90..130, as reddish bark beside a red marker.
+    fn red_over_bark(marker_x: f64) -> RgbImage {
+        red_over(
+            marker_x,
+            |x| (90..130).contains(&x),
+            [[120, 76, 78], [150, 95, 98]],
+        )
+    }
+
+    /// [`red_over`] bark only about a third paler than the marker (saturation 153 against
+    /// 225, hue 179: as pale as the marker's own streak at a release), over x 80..176 and the
+    /// whole height: an extended surface, 30 markers' worth of it.
     fn red_over_pale_bark(marker_x: f64) -> RgbImage {
-        RgbImage::from_fn(176, 80, |x, y| {
-            let (dx, dy) = (f64::from(x) - marker_x, f64::from(y) - 40.0);
-            if dx * dx + dy * dy <= 49.0 {
-                red_marker(x, y)
-            } else if x >= 80 {
-                if x % 5 == 0 {
-                    image::Rgb([130, 52, 54])
-                } else {
-                    image::Rgb([160, 64, 66])
-                }
-            } else {
-                image::Rgb([100, 110, 95])
-            }
-        })
+        red_over(marker_x, |x| x >= 80, [[130, 52, 54], [160, 64, 66]])
     }
 
     #[test]
