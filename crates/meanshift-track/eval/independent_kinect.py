@@ -118,8 +118,11 @@ def sphere(img, centre, radius, bgr, cover=None):
     if x0 >= x1 or y0 >= y1:
         return
     ys, xs = np.mgrid[y0:y1, x0:x1].astype(np.float64)
-    dx = (xs + 0.5 - centre[0]) / radius
-    dy = (ys + 0.5 - centre[1]) / radius
+    # Pixel centres at integer coordinates, as everywhere in the workspace and in OpenCV's
+    # drawing (the twigs, distractors and occluders): until 6 December 2026 this used
+    # `xs + 0.5`, which drew every sphere half a pixel up and left of its truth.
+    dx = (xs - centre[0]) / radius
+    dy = (ys - centre[1]) / radius
     d = np.sqrt(dx * dx + dy * dy)
     alpha = np.clip((1.0 - d) * radius + 0.5, 0.0, 1.0)
     shade = np.clip(0.8 + 0.3 * (-dx - dy) / math.sqrt(2.0) - 0.15 * d * d, 0.45, 1.15)
