@@ -25,14 +25,14 @@ const ADAPTIVE_BORDER_PX: i32 = 10;
 
 /// Least distance (8-bit RGB levels) between the marker's colour and the background for a
 /// streak to be told from it.
-const STREAK_MIN_CONTRAST: f32 = 40.0;
+pub(crate) const STREAK_MIN_CONTRAST: f32 = 40.0;
 /// Least coverage of a streak pixel: the share of the exposure the marker spent on it.
 const STREAK_MIN_COVERAGE: f32 = 0.15;
 /// Coverage at and above which a streak pixel weighs as much as the marker's own colour.
 const STREAK_FULL_COVERAGE: f32 = 0.5;
 /// Largest distance (8-bit levels) of a streak pixel from the line between background and
 /// marker colour, and as a share of the coverage times the contrast (colour noise, JPEG).
-const STREAK_RESIDUAL: [f32; 2] = [15.0, 0.3];
+pub(crate) const STREAK_RESIDUAL: [f32; 2] = [15.0, 0.3];
 /// The least brightness a streak pixel may imply for what covered it, as a share of the
 /// marker's mean colour, unless the marker's own darkest pixels on the first frame are
 /// darker (see `Tracker` `darkest_shade`): a streak pixel is a mean of the marker's surface
@@ -41,6 +41,16 @@ const STREAK_RESIDUAL: [f32; 2] = [15.0, 0.3];
 /// (the third generator's bark twigs imply 0.53 of a red marker's colour; its shaded
 /// spheres' darkest pixels 0.56-0.64, `docs/validation.md`).
 pub(crate) const STREAK_MIN_SHADE: f32 = 0.6;
+/// Largest distance of a streak pixel off the plane of its background and the marker's core
+/// colour toward gray's side of it, as a share of the coverage times the contrast, for a
+/// marker whose rim on the first frame blends with its background in that plane (see
+/// `Tracker` `rim_hue_share`). The plane holds every blend of the background with every
+/// shade of the marker; a twig or branch smeared over the sky implies a grayer colour, off
+/// it toward gray (a green marker's twig on the third generator's seed 8: 0.15-0.2 of the
+/// contrast), while a compressed frame's blends at an edge leave it either way (luma kept
+/// per pixel, chroma shared by blocks), so only gray's side is held. Chosen on the third
+/// generator's tuning seeds (`docs/validation.md`).
+pub(crate) const STREAK_MIN_HUE_SHARE: f32 = 0.1;
 /// Pixel step of the sampling pass of a sparse [`Region::fill`], along rows and between rows: a
 /// blob two pixels across in both directions holds a sampled pixel.
 const SPARSE_STEP_PX: usize = 2;
@@ -71,6 +81,14 @@ pub(crate) struct Streak<'a> {
     /// The least brightness, as a share of `colour` (its projection on it), of the colour a
     /// streak pixel implies for what covered it (see [`Streak::raise_row`]).
     pub(crate) shade: f32,
+    /// The largest distance of a streak pixel off the plane of its background and `core`
+    /// toward gray, as a share of coverage times contrast: from [`STREAK_MIN_HUE_SHARE`]
+    /// (a rim blending in the plane) up to the general residual's share
+    /// (`STREAK_RESIDUAL[1]`: a marker whose rim is paled toward gray, by a camera's chroma
+    /// denoising for one, whose streaks are paled as much).
+    pub(crate) hue_share: f32,
+    /// The marker's core colour (RGB; its hue, see `Tracker` `core_colour`).
+    pub(crate) core: [f32; 3],
 }
 
 impl Streak<'_> {
@@ -121,6 +139,7 @@ impl Streak<'_> {
         let m = self.colour;
         let mm = m[0] * m[0] + m[1] * m[1] + m[2] * m[2];
         let shade = self.shade;
+        let k = self.core;
         for i in 0..N {
             let d = [m[0] - b[0][i], m[1] - b[1][i], m[2] - b[2][i]];
             let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
@@ -134,10 +153,24 @@ impl Streak<'_> {
             let bright = em >= a * (shade * mm - bm);
             let r = [e[0] - a * d[0], e[1] - a * d[1], e[2] - a * d[2]];
             let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-            let limit = STREAK_RESIDUAL[0].max(STREAK_RESIDUAL[1] * a.min(1.0) * dd.sqrt());
+            let scale = a.min(1.0) * dd.sqrt();
+            let limit = STREAK_RESIDUAL[0].max(STREAK_RESIDUAL[1] * scale);
+            // Off the plane of the background and the marker's core colour, which holds
+            // every blend of the background with every shade of the marker, toward gray:
+            // `e . n` over `|n|`, `n = core x b`, of the sign of `(1, 1, 1) . n` (no test
+            // where the two are parallel: `n` is zero).
+            let n = [
+                k[1] * b[2][i] - k[2] * b[1][i],
+                k[2] * b[0][i] - k[0] * b[2][i],
+                k[0] * b[1][i] - k[1] * b[0][i],
+            ];
+            let en = e[0] * n[0] + e[1] * n[1] + e[2] * n[2];
+            let nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+            let hue_limit = STREAK_RESIDUAL[0].max(self.hue_share * scale);
             let on_line = dd >= STREAK_MIN_CONTRAST * STREAK_MIN_CONTRAST
                 && ed >= STREAK_MIN_COVERAGE * dd
                 && rr <= limit * limit
+                && (en * (n[0] + n[1] + n[2]) <= 0.0 || en * en <= hue_limit * hue_limit * nn)
                 && bright;
             let streak = if on_line {
                 255.0 * (a / STREAK_FULL_COVERAGE).min(1.0)
@@ -1084,6 +1117,8 @@ mod tests {
                     previous: &previous,
                     colour: [200.0, 35.0, 20.0],
                     shade: STREAK_MIN_SHADE,
+                    hue_share: STREAK_RESIDUAL[1],
+                    core: [200.0, 35.0, 20.0],
                 };
                 let open = PixelFilter {
                     depth: None,
@@ -1141,7 +1176,12 @@ mod tests {
 
     /// The streak weight of one pixel as its definition reads, for the plane loop to be
     /// checked against.
-    fn streak_of(m: [f32; 3], shade: f32, p: [f32; 3], b: [f32; 3]) -> f32 {
+    fn streak_of(
+        [m, k]: [[f32; 3]; 2],
+        [shade, hue_share]: [f32; 2],
+        p: [f32; 3],
+        b: [f32; 3],
+    ) -> f32 {
         let d = [m[0] - b[0], m[1] - b[1], m[2] - b[2]];
         let e = [p[0] - b[0], p[1] - b[1], p[2] - b[2]];
         let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
@@ -1160,6 +1200,19 @@ mod tests {
             return 0.0;
         }
         let mm = m[0] * m[0] + m[1] * m[1] + m[2] * m[2];
+        // The distance of `e` from the plane of the core colour and the background.
+        let n = [
+            k[1] * b[2] - k[2] * b[1],
+            k[2] * b[0] - k[0] * b[2],
+            k[0] * b[1] - k[1] * b[0],
+        ];
+        let nn: f32 = n.iter().map(|v| v * v).sum();
+        let en: f32 = (0..3).map(|c| e[c] * n[c]).sum();
+        let hue_limit = STREAK_RESIDUAL[0].max(hue_share * a.min(1.0) * dd.sqrt());
+        let toward_gray = en * (n[0] + n[1] + n[2]) > 0.0;
+        if toward_gray && en * en > hue_limit * hue_limit * nn {
+            return 0.0;
+        }
         let em = e[0] * m[0] + e[1] * m[1] + e[2] * m[2];
         let bm = b[0] * m[0] + b[1] * m[1] + b[2] * m[2];
         if em < a * (shade * mm - bm) {
@@ -1171,14 +1224,20 @@ mod tests {
     #[test]
     fn streak_weights_of_a_row_are_each_pixels_own() {
         let previous = RgbImage::new(1, 1);
-        let streak = Streak {
-            previous: &previous,
-            colour: [210.0, 30.0, 25.0],
-            shade: STREAK_MIN_SHADE,
-        };
         // Rows of many lengths (vector blocks and remainders), pixels on and off the line
-        // between each background and the marker's colour.
-        for n in [0usize, 1, 7, 8, 9, 15, 16, 17, 31, 32, 45] {
+        // between each background and the marker's colour, under the general residual and
+        // under the least share across the marker's colour.
+        for (n, hue_share) in [0usize, 1, 7, 8, 9, 15, 16, 17, 31, 32, 45]
+            .into_iter()
+            .flat_map(|n| [(n, STREAK_RESIDUAL[1]), (n, STREAK_MIN_HUE_SHARE)])
+        {
+            let streak = Streak {
+                previous: &previous,
+                colour: [210.0, 30.0, 25.0],
+                shade: STREAK_MIN_SHADE,
+                hue_share,
+                core: [200.0, 40.0, 30.0],
+            };
             let background: Vec<u8> = (0..3 * n).map(|k| ((k * 53 + 11) % 200) as u8).collect();
             let row: Vec<u8> = (0..3 * n)
                 .map(|k| {
@@ -1196,7 +1255,9 @@ mod tests {
             let mut raised = 0;
             for i in 0..n {
                 let f = |v: &[u8]| [v[3 * i], v[3 * i + 1], v[3 * i + 2]].map(f32::from);
-                let s = streak_of(streak.colour, streak.shade, f(&row), f(&background));
+                let params = [streak.shade, streak.hue_share];
+                let colours = [streak.colour, streak.core];
+                let s = streak_of(colours, params, f(&row), f(&background));
                 assert_eq!(weights[i], before[i].max(s), "length {n}, pixel {i}");
                 raised += usize::from(s > before[i]);
             }
@@ -1221,14 +1282,63 @@ mod tests {
         for a in [0.2f32, 0.35, 0.5, 0.8] {
             // Without the shade test the twig's smear is on the line: the test is what
             // turns it down.
+            let general = STREAK_RESIDUAL[1];
+            let red = [red, red];
             assert!(
-                streak_of(red, 0.0, blend(twig, a), sky) > 0.0,
+                streak_of(red, [0.0, general], blend(twig, a), sky) > 0.0,
                 "coverage {a}"
             );
-            assert_eq!(streak_of(red, STREAK_MIN_SHADE, blend(twig, a), sky), 0.0);
-            assert!(streak_of(red, STREAK_MIN_SHADE, blend(red, a), sky) > 0.0);
-            let darkest = red.map(|v| 0.65 * v);
-            assert!(streak_of(red, STREAK_MIN_SHADE, blend(darkest, a), sky) > 0.0);
+            let params = [STREAK_MIN_SHADE, general];
+            assert_eq!(streak_of(red, params, blend(twig, a), sky), 0.0);
+            assert!(streak_of(red, params, blend(red[0], a), sky) > 0.0);
+            let darkest = red[0].map(|v| 0.65 * v);
+            assert!(streak_of(red, params, blend(darkest, a), sky) > 0.0);
+        }
+    }
+
+    /// A twig smeared over the sky by a green marker it carries (the third generator's seed
+    /// 8): its pixels imply a gray as bright as the marker's mean colour (which took in
+    /// some sky), and pass the line's general residual and the shade test, so the marker's
+    /// blob ran on along the twig and its centre was measured 5 px toward it. They lie off
+    /// the plane of the sky and the marker's core colour, which holds every blend of the
+    /// sky with every shade of the marker, and the least share off it turns them down; the
+    /// marker's own streak, lit or shaded, lies in the plane.
+    #[test]
+    fn a_twigs_gray_smear_is_not_a_streak_of_a_green_marker() {
+        let sky = [155.0f32, 210.0, 245.0];
+        let (mean, core) = ([55.0f32, 119.0, 79.0], [40.0f32, 145.0, 52.0]);
+        let gray = [88.0f32, 76.0, 83.0];
+        let blend =
+            |c: [f32; 3], a: f32| [0, 1, 2].map(|k| (a * c[k] + (1.0 - a) * sky[k]).round());
+        let general = [STREAK_MIN_SHADE, STREAK_RESIDUAL[1]];
+        let least = [STREAK_MIN_SHADE, STREAK_MIN_HUE_SHARE];
+        for a in [0.55f32, 0.65, 0.8] {
+            assert!(
+                streak_of([mean, core], general, blend(gray, a), sky) > 0.0,
+                "coverage {a}"
+            );
+            assert_eq!(streak_of([mean, core], least, blend(gray, a), sky), 0.0);
+            for shade in [0.7f32, 1.0, 1.15] {
+                let marker = core.map(|v| shade * v);
+                assert!(streak_of([mean, core], least, blend(marker, a), sky) > 0.0);
+            }
+            // As far off the plane as the gray smear but on the other side (a compressed
+            // frame's blend at an edge leaves it either way): kept.
+            let n = [
+                core[1] * sky[2] - core[2] * sky[1],
+                core[2] * sky[0] - core[0] * sky[2],
+                core[0] * sky[1] - core[1] * sky[0],
+            ];
+            let norm = n.iter().map(|v| v * v).sum::<f32>().sqrt();
+            let away = -(n[0] + n[1] + n[2]).signum() * 25.0 / norm;
+            let on = blend(core, a);
+            let pushed = [0, 1, 2].map(|c| (on[c] + away * n[c]).round());
+            assert!(
+                streak_of([mean, core], least, pushed, sky) > 0.0,
+                "{pushed:?}"
+            );
+            let toward = [0, 1, 2].map(|c| (on[c] - away * n[c]).round());
+            assert_eq!(streak_of([mean, core], least, toward, sky), 0.0);
         }
     }
 
@@ -1359,6 +1469,8 @@ mod tests {
                 previous,
                 colour: [210.0, 30.0, 25.0],
                 shade: STREAK_MIN_SHADE,
+                hue_share: STREAK_RESIDUAL[1],
+                core: [210.0, 30.0, 25.0],
             }),
         };
         let (mut full, mut sparse) = (Region::default(), Region::default());

@@ -92,6 +92,8 @@ pub(super) fn fill(
             previous,
             colour: m.colour,
             shade: m.shade,
+            hue_share: m.hue_share,
+            core: m.core_colour,
         });
     let filter = PixelFilter {
         depth: gate,
@@ -266,6 +268,127 @@ pub(super) fn darkest_shade(
     }
     let k = ((shades.len() - 1) as f64 * DARKEST_QUANTILE).round() as usize;
     Some(*shades.select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1)
+}
+
+/// Rays cast from a marker's centre to find its rim on the first frame.
+const RIM_RAYS: usize = 32;
+/// Least coverage times contrast (8-bit levels) of a rim pixel that counts: below it the
+/// sensor's noise would decide its share.
+const RIM_MIN_SIGNAL: f32 = 40.0;
+/// Coverages of the rim pixels that count: a blend of the marker and its background.
+const RIM_COVERAGE: [f32; 2] = [0.2, 0.8];
+/// Least rim pixels for a share to be learnt.
+const RIM_MIN_PIXELS: usize = 12;
+/// The share learnt is this many times the rim pixels' median share.
+const RIM_MARGIN: f32 = 2.0;
+
+/// How far the marker's rim on the first frame lies off the plane of its background and its
+/// core colour `core` (every blend of the background with every shade of the marker) toward
+/// gray's side, as a share of coverage (against its mean colour `colour`) times contrast:
+/// twice the median over the rim pixels met by [`RIM_RAYS`] rays from `center` (a pixel on
+/// the other side counts as none), each measured against the background two pixels beyond
+/// the rim on its ray, between [`STREAK_MIN_HUE_SHARE`] and the general residual share. A
+/// rim drawn or filmed plainly blends in the plane (noise alone leaves it; a JPEG of quality
+/// 30 about 0.05); a camera that pales edges toward gray (chroma denoising) pales its
+/// streaks as much, and more is allowed. `None` where too few rim pixels are found (a
+/// marker on a background of its colour, or at the frame's edge).
+pub(super) fn rim_hue_share(
+    frame: &RgbImage,
+    center: Point2<f64>,
+    width_px: f64,
+    [colour, core]: [[f32; 3]; 2],
+) -> Option<f32> {
+    let mm: f32 = colour.iter().map(|c| c * c).sum();
+    if mm <= 0.0 || !(width_px.is_finite() && width_px > 0.0) {
+        return None;
+    }
+    let far = |p: [f32; 3]| {
+        let d: f32 = (0..3).map(|c| (p[c] - colour[c]).powi(2)).sum();
+        d >= STREAK_MIN_CONTRAST * STREAK_MIN_CONTRAST
+    };
+    let (w, h) = (f64::from(frame.width()), f64::from(frame.height()));
+    let mut shares = Vec::new();
+    for k in 0..RIM_RAYS {
+        let (sin, cos) = (std::f64::consts::TAU * k as f64 / RIM_RAYS as f64).sin_cos();
+        // A pixel on the ray `t` pixels out; none outside the frame or in a hole.
+        let at = |t: f64| {
+            let (x, y) = ((center.x + t * cos).round(), (center.y + t * sin).round());
+            (x >= 0.0 && y >= 0.0 && x < w && y < h)
+                .then(|| frame.get_pixel(x as u32, y as u32).0)
+                .filter(|p| *p != [0, 0, 0])
+                .map(|p| p.map(f32::from))
+        };
+        let steps = (1.5 * width_px).ceil() as usize + 3;
+        let first = (0.3 * width_px).floor() as usize;
+        let Some(edge) = (first..steps).find(|&t| {
+            matches!((at(t as f64), at(t as f64 + 1.0)), (Some(p), Some(q)) if far(p) && far(q))
+        }) else {
+            continue;
+        };
+        let Some(b) = at(edge as f64 + 2.0).filter(|b| far(*b)) else {
+            continue;
+        };
+        let d = [0, 1, 2].map(|c| colour[c] - b[c]);
+        let dd: f32 = d.iter().map(|v| v * v).sum();
+        let n = [
+            core[1] * b[2] - core[2] * b[1],
+            core[2] * b[0] - core[0] * b[2],
+            core[0] * b[1] - core[1] * b[0],
+        ];
+        let nn: f32 = n.iter().map(|v| v * v).sum();
+        if nn <= 0.0 {
+            continue;
+        }
+        for t in edge.saturating_sub(3)..=edge {
+            let Some(p) = at(t as f64) else { continue };
+            let e = [0, 1, 2].map(|c| p[c] - b[c]);
+            let a = (0..3).map(|c| e[c] * d[c]).sum::<f32>() / dd;
+            let signal = a * dd.sqrt();
+            if !(RIM_COVERAGE[0]..=RIM_COVERAGE[1]).contains(&a) || signal < RIM_MIN_SIGNAL {
+                continue;
+            }
+            let en: f32 = (0..3).map(|c| e[c] * n[c]).sum();
+            let toward_gray = en * (n[0] + n[1] + n[2]) > 0.0;
+            shares.push(if toward_gray {
+                en.abs() / nn.sqrt() / signal
+            } else {
+                0.0
+            });
+        }
+    }
+    if shares.len() < RIM_MIN_PIXELS {
+        return None;
+    }
+    let mid = shares.len() / 2;
+    let median = *shares.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
+    Some((RIM_MARGIN * median).clamp(STREAK_MIN_HUE_SHARE, STREAK_RESIDUAL[1]))
+}
+
+/// Mean RGB of the pixels of the central half of `window` (half its width and height) whose
+/// weight is at least `threshold`: the marker's own colour, without the blends of its rim
+/// with the background that [`mean_colour`] takes in. The mean colour if none is.
+pub(super) fn core_colour(
+    frame: &RgbImage,
+    region: &Region,
+    window: PixelRect,
+    threshold: f32,
+) -> [f32; 3] {
+    let core = PixelRect::centered_at(
+        window.center(),
+        (window.width / 2).max(1),
+        (window.height / 2).max(1),
+    );
+    let (mut sum, mut n) = ([0.0f64; 3], 0.0f64);
+    for (p, _) in window_pixels(frame, region, core, threshold).filter(|(_, own)| *own) {
+        for c in 0..3 {
+            sum[c] += f64::from(p[c]);
+        }
+        n += 1.0;
+    }
+    if n == 0.0 {
+        return mean_colour(frame, region, window, threshold);
+    }
+    sum.map(|v| (v / n) as f32)
 }
 
 /// Mean RGB of the pixels of `window` whose weight is at least `threshold` (the marker's
@@ -831,6 +954,57 @@ pub(super) fn window_depth(depth: &DepthView<'_>, window: PixelRect) -> Option<f
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A green disc of radius 8 px over a sky, its rim anti-aliased (each rim pixel the blend
+    /// of disc and sky by the share of it the disc covers), and then moved `gray` of the way
+    /// to the gray of its own brightness (a camera's chroma denoising pales edges so).
+    fn disc_over_sky(gray: f64) -> RgbImage {
+        let (green, sky) = ([40.0f64, 150.0, 55.0], [130.0f64, 185.0, 225.0]);
+        RgbImage::from_fn(48, 48, |x, y| {
+            let (dx, dy) = (f64::from(x) - 24.0, f64::from(y) - 24.0);
+            // The covered share of the pixel, by a 4x4 grid of samples.
+            let inside = (0..16)
+                .filter(|k| {
+                    let sx = dx + (f64::from(k % 4) + 0.5) / 4.0 - 0.5;
+                    let sy = dy + (f64::from(k / 4) + 0.5) / 4.0 - 0.5;
+                    sx * sx + sy * sy <= 64.0
+                })
+                .count();
+            let a = inside as f64 / 16.0;
+            let p = [0, 1, 2].map(|c| a * green[c] + (1.0 - a) * sky[c]);
+            let rim = if inside > 0 && inside < 16 { gray } else { 0.0 };
+            let luma = (p[0] + p[1] + p[2]) / 3.0;
+            image::Rgb(p.map(|v| ((1.0 - rim) * v + rim * luma).round() as u8))
+        })
+    }
+
+    /// A clean rim blends the marker with its background in the plane of the two: the
+    /// least share is learnt (a JPEG of quality 30 of the same disc about that: its rim
+    /// stays within about 0.05 of the plane). A rim paled toward gray (by a camera's chroma
+    /// denoising, whose streaks are paled too) leaves the plane on gray's side, and a larger
+    /// share is learnt; a rim that is nowhere (a marker on its own colour) gives none.
+    #[test]
+    fn a_clean_rim_learns_the_least_share_off_the_plane_and_a_paled_one_more() {
+        let clean = disc_over_sky(0.0);
+        let colours = [[49.0f32, 153.0, 72.0], [40.0, 150.0, 55.0]];
+        let center = Point2::new(24.0, 24.0);
+        assert_eq!(
+            rim_hue_share(&clean, center, 16.0, colours),
+            Some(STREAK_MIN_HUE_SHARE)
+        );
+        let mut bytes = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 30)
+            .encode_image(&clean)
+            .expect("encodes");
+        let compressed = image::load_from_memory(&bytes).expect("decodes").to_rgb8();
+        let jpeg = rim_hue_share(&compressed, center, 16.0, colours).unwrap_or(1.0);
+        assert!(jpeg <= 1.2 * STREAK_MIN_HUE_SHARE, "{jpeg}");
+        let paled = disc_over_sky(0.3);
+        let wider = rim_hue_share(&paled, center, 16.0, colours).unwrap_or(0.0);
+        assert!(wider > 2.0 * STREAK_MIN_HUE_SHARE, "{wider}");
+        let flat = RgbImage::from_pixel(48, 48, image::Rgb([40, 150, 55]));
+        assert_eq!(rim_hue_share(&flat, center, 16.0, colours), None);
+    }
 
     /// A marker whose left half is lit and right half in shadow at half the brightness:
     /// its mean colour is three quarters of the lit one, so its darkest shade is 2/3 of the

@@ -122,6 +122,11 @@ impl Tracker {
         ) {
             state.shade = darkest.min(STREAK_MIN_SHADE);
         }
+        state.core_colour = core_colour(frame, &self.region, w, state.reference.threshold);
+        let colours = [state.colour, state.core_colour];
+        if let Some(share) = rim_hue_share(frame, center, state.reference.width_px, colours) {
+            state.hue_share = share;
+        }
         let mode = self.region.locate(
             &state.model,
             &config.criteria,

@@ -64,7 +64,10 @@ use crate::kalman::Kalman;
 use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
 use crate::model::{AppearanceModel, MarkerModel, marker_mask};
 use crate::rect::PixelRect;
-use crate::region::{Lookup, Mode, PixelFilter, Region, STREAK_MIN_SHADE, Sparse, Streak};
+use crate::region::{
+    Lookup, Mode, PixelFilter, Region, STREAK_MIN_CONTRAST, STREAK_MIN_HUE_SHARE, STREAK_MIN_SHADE,
+    STREAK_RESIDUAL, Sparse, Streak,
+};
 use crate::swing::Swing;
 use crate::template::{Template, TemplateScratch};
 
@@ -512,6 +515,13 @@ struct MarkerState {
     /// (see `Streak::shade`): [`STREAK_MIN_SHADE`], or the marker's own darkest shade on
     /// the first frame where that is darker (see `darkest_shade`).
     shade: f32,
+    /// How far a streak pixel of the marker may lie off the mixing line across the marker's
+    /// colour, as a share of coverage times contrast (see `Streak::hue_share`): learnt from
+    /// the marker's rim on the first frame (see `rim_hue_share`).
+    hue_share: f32,
+    /// Mean colour (RGB) of the central half of the marker's window on the first frame (see
+    /// `core_colour`): its hue, without its rim's blends.
+    core_colour: [f32; 3],
 }
 
 /// A measurement: where, how well it looks like the marker, and the pixels it holds.

@@ -46,6 +46,8 @@ impl MarkerState {
             core_saturation: None,
             colour: [0.0; 3],
             shade: STREAK_MIN_SHADE,
+            hue_share: STREAK_RESIDUAL[1],
+            core_colour: [0.0; 3],
             template: None,
         }
     }
