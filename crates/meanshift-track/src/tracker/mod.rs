@@ -189,6 +189,11 @@ const DIM_SHARE: f64 = 0.5;
 /// Distance (windows) within which candidates of different markers are one place: two
 /// markers cannot both be closer than this, so one place cannot go to two of them.
 const PLACE_SHARE: f64 = 0.5;
+/// ... when they hold one blob (their boxes overlap by at least this share of their union),
+/// or are closer than this many windows: two blobs of one look side by side are two places
+/// (two markers of one look crossing, one partly in front of the other).
+const PLACE_BLOB_OVERLAP: f64 = 0.5;
+const PLACE_SAME_SHARE: f64 = 0.25;
 /// Least lead (cost units, nats) of a marker's best place over its next choice for the marker
 /// to be decided on its own, before its neighbours: e^3, twenty times likelier.
 const ANCHOR_MARGIN: f64 = 3.0;

@@ -487,15 +487,14 @@ impl Tracker {
         claimed: &[Claim],
         quick: &[Option<Scored>],
     ) -> Vec<Option<(Measured, Option<f64>)>> {
-        let mut places: Vec<(Point2<f64>, f64)> = Vec::new();
+        let mut places: Vec<(Point2<f64>, f64, PixelRect)> = Vec::new();
         let mut column = Vec::with_capacity(candidates.len());
         for c in candidates {
             let side = window_px(&self.markers[c.marker]);
-            let same = places
-                .iter()
-                .position(|(p, s)| (p - c.measured.center).norm() < PLACE_SHARE * side.min(*s));
+            let here = (c.measured.center, side, c.measured.holds);
+            let same = places.iter().position(|place| one_place(*place, here));
             column.push(same.unwrap_or_else(|| {
-                places.push((c.measured.center, side));
+                places.push((c.measured.center, side, c.measured.holds));
                 places.len() - 1
             }));
         }
@@ -707,6 +706,24 @@ impl Confined {
     }
 }
 
+/// Whether two candidates, each `(centre, window side, the pixels it holds)`, are one place
+/// that only one marker may take: closer than [`PLACE_SHARE`] of the smaller window and
+/// either one blob (boxes overlapping by [`PLACE_BLOB_OVERLAP`] of their union: the same blob
+/// found from two markers' gates) or closer than [`PLACE_SAME_SHARE`]. Two blobs side by side
+/// are two places: two markers of one look crossing, one partly in front of the other
+/// (our generator's combined condition, seed 11004: 13 px apart with windows of 33 px).
+fn one_place(
+    (a, side_a, holds_a): (Point2<f64>, f64, PixelRect),
+    (b, side_b, holds_b): (Point2<f64>, f64, PixelRect),
+) -> bool {
+    let side = side_a.min(side_b);
+    let near = (a - b).norm();
+    let both = holds_a.intersect(&holds_b).area() as f64;
+    let either = (holds_a.area() + holds_b.area()) as f64 - both;
+    let one_blob = both >= PLACE_BLOB_OVERLAP * either.max(1.0);
+    near < PLACE_SHARE * side && (one_blob || near < PLACE_SAME_SHARE * side)
+}
+
 /// A release streak the quick pass's region cut (`quick`, of marker `m` found in the last
 /// frame), which detection's gate holds whole (among `found`): the cut part is scored (it is
 /// where the marker's motion points), but the whole blob is its measurement, not the part
@@ -804,6 +821,44 @@ pub(super) struct Gate {
 mod tests {
     use super::*;
     use crate::tracker::{measured_at_point, red_squares, two_red_markers};
+
+    #[test]
+    fn two_blobs_side_by_side_are_two_places_and_one_blob_seen_twice_is_one() {
+        let side = 33.0;
+        // Seed 11004's pair: a streak and a disc partly behind it, 16 px apart.
+        let a = (
+            Point2::new(175.0, 169.0),
+            side,
+            PixelRect::new(159, 161, 32, 18),
+        );
+        let b = (
+            Point2::new(167.0, 183.0),
+            side,
+            PixelRect::new(155, 169, 23, 25),
+        );
+        assert!(!one_place(a, b));
+        // One blob, measured from two gates 3 px apart.
+        let again = (
+            Point2::new(173.0, 171.0),
+            side,
+            PixelRect::new(158, 161, 32, 19),
+        );
+        assert!(one_place(a, again));
+        // Within a quarter window: one place whatever the boxes.
+        let close = (
+            Point2::new(170.0, 175.0),
+            side,
+            PixelRect::new(160, 168, 20, 15),
+        );
+        assert!(one_place(a, close));
+        // Beyond half a window: never.
+        let far = (
+            Point2::new(175.0, 190.0),
+            side,
+            PixelRect::new(159, 161, 32, 18),
+        );
+        assert!(!one_place(a, far));
+    }
 
     #[test]
     fn a_streak_the_quick_region_cuts_is_measured_whole_where_detection_holds_it() -> Result<()> {
