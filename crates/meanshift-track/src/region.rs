@@ -76,6 +76,9 @@ const STREAK_CHUNK_PX: usize = 16;
 pub(crate) struct Streak<'a> {
     /// The previous frame (same size as the frame).
     pub(crate) previous: &'a RgbImage,
+    /// The camera's shift since the previous frame (whole pixels): a pixel's background at
+    /// `(x, y)` is the previous frame's at `(x - shift[0], y - shift[1])`, clamped into it.
+    pub(crate) shift: [i32; 2],
     /// The marker's mean colour (RGB).
     pub(crate) colour: [f32; 3],
     /// The least brightness, as a share of `colour` (its projection on it), of the colour a
@@ -295,6 +298,32 @@ fn streak_background<'a>(
         .map(|s| (s, s.previous.as_raw().as_slice()))
 }
 
+/// Append to `out` the background of the `len` pixels of row `y` from column `x` on (all
+/// inside the frame): the previous frame's pixels (`previous`, RGB bytes, `width` x
+/// `height`) where the camera's `shift` puts them, clamped into that frame.
+fn extend_background(
+    previous: &[u8],
+    (width, height): (u32, u32),
+    (x, y): (i32, i32),
+    len: usize,
+    shift: [i32; 2],
+    out: &mut Vec<u8>,
+) {
+    let (width, height) = (width as i32, height as i32);
+    let stride = 3 * width as usize;
+    let sy = (y - shift[1]).clamp(0, height - 1) as usize;
+    let sx = x - shift[0];
+    let row = &previous[sy * stride..(sy + 1) * stride];
+    if sx >= 0 && sx as usize + len <= width as usize {
+        out.extend_from_slice(&row[3 * sx as usize..3 * (sx as usize + len)]);
+    } else {
+        for k in 0..len as i32 {
+            let c = 3 * (sx + k).clamp(0, width - 1) as usize;
+            out.extend_from_slice(&row[c..c + 3]);
+        }
+    }
+}
+
 /// What a pixel must pass to count, besides the model and its mask (in the [`Lookup`]): a
 /// depth gate, and rectangles other markers hold.
 #[derive(Debug, Clone, Copy)]
@@ -418,6 +447,8 @@ struct BlockScratch {
 struct SparseScratch {
     gathered: Vec<u8>,
     background: Vec<u8>,
+    /// A row of the previous frame read where the camera's shift puts it.
+    shifted: Vec<u8>,
     weights: Vec<f32>,
     /// Per cell of the region, whether a sampled pixel in it reached the threshold.
     hit: Vec<bool>,
@@ -709,7 +740,15 @@ impl Region {
             let row = &raw[start..start + rect.width as usize * 3];
             gather(row, &mut scratch.gathered);
             let background = previous.map(|(s, prev)| {
-                gather(&prev[start..start + row.len()], &mut scratch.background);
+                if s.shift == [0, 0] {
+                    gather(&prev[start..start + row.len()], &mut scratch.background);
+                } else {
+                    scratch.shifted.clear();
+                    let size = frame.dimensions();
+                    let len = rect.width as usize;
+                    extend_background(prev, size, (rect.x, y), len, s.shift, &mut scratch.shifted);
+                    gather(&scratch.shifted, &mut scratch.background);
+                }
                 (s, &scratch.background[..])
             });
             scratch.weights.clear();
@@ -815,10 +854,22 @@ impl Region {
                 block
                     .pixels
                     .extend_from_slice(&raw[start..start + width * 3]);
-                if let Some((_, prev)) = previous {
-                    block
-                        .background
-                        .extend_from_slice(&prev[start..start + width * 3]);
+                if let Some((s, prev)) = previous {
+                    if s.shift == [0, 0] {
+                        block
+                            .background
+                            .extend_from_slice(&prev[start..start + width * 3]);
+                    } else {
+                        let size = frame.dimensions();
+                        extend_background(
+                            prev,
+                            size,
+                            (sub.x, y),
+                            width,
+                            s.shift,
+                            &mut block.background,
+                        );
+                    }
                 }
             }
             let background = previous.map(|(s, _)| (s, &block.background[..]));
@@ -1115,6 +1166,7 @@ mod tests {
                 let masked = [PixelRect::new(-10, 0, 18, 8), PixelRect::new(24, 15, 3, 40)];
                 let streak = Streak {
                     previous: &previous,
+                    shift: [0, 0],
                     colour: [200.0, 35.0, 20.0],
                     shade: STREAK_MIN_SHADE,
                     hue_share: STREAK_RESIDUAL[1],
@@ -1233,6 +1285,7 @@ mod tests {
         {
             let streak = Streak {
                 previous: &previous,
+                shift: [0, 0],
                 colour: [210.0, 30.0, 25.0],
                 shade: STREAK_MIN_SHADE,
                 hue_share,
@@ -1467,6 +1520,7 @@ mod tests {
             paler: &[],
             streak: Some(Streak {
                 previous,
+                shift: [0, 0],
                 colour: [210.0, 30.0, 25.0],
                 shade: STREAK_MIN_SHADE,
                 hue_share: STREAK_RESIDUAL[1],
@@ -1479,6 +1533,66 @@ mod tests {
         let at = Sparse { threshold, cell };
         sparse.fill(&appearance, model, lookup, frame, rect, &filter, Some(at));
         (full, sparse)
+    }
+
+    /// A still scene shaken by the camera: a pale-red stripe (the marker's colour half
+    /// blended with the sky, as a streak of the marker would be) moved 7 px up. Read where
+    /// the camera's shift puts it, the frame before gives no streak weight anywhere, as when
+    /// nothing moved; read in place, the stripe's edges look newly covered, like a streak.
+    #[test]
+    fn a_shaken_scene_read_where_the_camera_moved_it_gives_no_streak() {
+        let (sky, red) = ([170u8, 200, 235], [210u8, 30, 25]);
+        let stripe: [u8; 3] =
+            std::array::from_fn(|c| ((u16::from(sky[c]) + u16::from(red[c])) / 2) as u8);
+        let scene = |up: i32| {
+            RgbImage::from_fn(120, 100, move |x, y| {
+                let along = x as i32 + y as i32 + up;
+                image::Rgb(if (60..72).contains(&along) {
+                    stripe
+                } else {
+                    sky
+                })
+            })
+        };
+        let first = RgbImage::from_fn(120, 100, |x, y| {
+            let (dx, dy) = (f64::from(x) - 20.0, f64::from(y) - 20.0);
+            image::Rgb(if dx * dx + dy * dy <= 36.0 { red } else { sky })
+        });
+        let (model, lookup) = red_marker(&first, PixelRect::new(13, 13, 15, 15)).expect("learns");
+        let appearance = AppearanceModel::Hue { bins: 16 };
+        let weigh = |frame: &RgbImage, previous: &RgbImage, shift: [i32; 2], sparse: bool| -> f64 {
+            let filter = PixelFilter {
+                depth: None,
+                masked: &[],
+                paler: &[],
+                streak: Some(Streak {
+                    previous,
+                    shift,
+                    colour: [210.0, 30.0, 25.0],
+                    shade: STREAK_MIN_SHADE,
+                    hue_share: STREAK_RESIDUAL[1],
+                    core: [210.0, 30.0, 25.0],
+                }),
+            };
+            let mut region = Region::default();
+            let rect = PixelRect::new(10, 15, 100, 70);
+            let at = sparse.then_some(Sparse {
+                threshold: TEST_THRESHOLD,
+                cell: (6, 6),
+            });
+            region.fill(&appearance, &model, &lookup, frame, rect, &filter, at);
+            region.weights.iter().map(|&w| f64::from(w)).sum()
+        };
+        let (still, shaken) = (scene(0), scene(7));
+        for sparse in [false, true] {
+            let unchanged = weigh(&shaken, &shaken, [0, 0], sparse);
+            assert_eq!(weigh(&shaken, &still, [0, -7], sparse), unchanged);
+            let in_place = weigh(&shaken, &still, [0, 0], sparse);
+            assert!(
+                in_place > unchanged + 255.0 * 20.0,
+                "{sparse}: {in_place} against {unchanged}"
+            );
+        }
     }
 
     /// A sparse fill weighs every blob at or above its threshold, the pixels about it and the

@@ -614,6 +614,24 @@ mod tests {
         follows_the_path(&mut t, &path, 40.0, 1.0, red_over_pale_bark)
     }
 
+    /// [`red_over`] bark a quarter paler than the marker (saturation 170 against 225, 0.76
+    /// of it; the third generator's tuning seeds 36 and 37 have bark at 0.73 of their
+    /// markers' cores) over the surface of [`red_over_pale_bark`].
+    fn red_over_bark_a_quarter_paler(marker_x: f64) -> RgbImage {
+        red_over(marker_x, |x| x >= 80, [[120, 40, 42], [150, 50, 52]])
+    }
+
+    #[test]
+    fn a_marker_swung_onto_a_surface_of_its_hue_a_quarter_paler_is_measured_on_itself() -> Result<()>
+    {
+        let mut t = marker_a(
+            &red_over_bark_a_quarter_paler(40.0),
+            PixelRect::new(32, 32, 17, 17),
+        )?;
+        let path: Vec<f64> = (1..=22).map(|k| 40.0 + 4.0 * f64::from(k)).collect();
+        follows_the_path(&mut t, &path, 40.0, 1.0, red_over_bark_a_quarter_paler)
+    }
+
     #[test]
     fn a_marker_swung_onto_bark_of_its_hue_is_measured_on_itself() -> Result<()> {
         let mut t = marker_a(&red_over_bark(40.0), PixelRect::new(32, 32, 17, 17))?;

@@ -48,6 +48,11 @@ pub(super) fn manoeuvre_var(
 /// ([`assign`]). `cost` is row-major `rows x columns` (infinite: not a candidate); `lasts`
 /// each row's marker, its last centre and window side; `anchors` the markers decided before;
 /// `coherent(a, b)` whether markers `a` and `b` have moved alike.
+///
+/// The neighbours' prior chooses between a marker's places: it is taken relative to the
+/// free place it favours, so that a marker whose only place lies where its neighbours do not
+/// point (at a release, markers pulled alike ring at their own frequencies) still takes it
+/// when its own cost allows.
 pub(super) fn assign_anchored(
     cost: &[f64],
     columns: usize,
@@ -83,10 +88,21 @@ pub(super) fn assign_anchored(
             out.copy_from_slice(row);
             if let Some((d, sigma)) = neighbour {
                 let expected = last + d;
+                let prior = |p: &Point2<f64>| {
+                    let z2: f64 = (p - expected).norm_squared() / (sigma * sigma);
+                    (0.5 * z2).min(NEIGHBOUR_CAP)
+                };
+                let least = out
+                    .iter()
+                    .zip(places)
+                    .zip(&taken)
+                    .filter(|((o, _), t)| o.is_finite() && !**t)
+                    .map(|((_, p), _)| prior(p))
+                    .fold(f64::INFINITY, f64::min);
+                let least = if least.is_finite() { least } else { 0.0 };
                 for (o, p) in out.iter_mut().zip(places) {
                     if o.is_finite() {
-                        let z2: f64 = (p - expected).norm_squared() / (sigma * sigma);
-                        *o += (0.5 * z2).min(NEIGHBOUR_CAP);
+                        *o += prior(p) - least;
                     }
                 }
             }
@@ -195,4 +211,43 @@ pub(super) fn neighbour_displacement<'a>(
         .sum::<f64>()
         / weight;
     Some((mean, (0.5 * side).max(spread.sqrt())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Marker 1, last at the origin with a window of 20 px, after marker 0 (an anchor 40 px
+    /// away, which it has moved alike with) moved 20 px right; `cost` is marker 1's row over
+    /// `places`.
+    fn assign_beside_an_anchor(cost: &[f64], places: &[Point2<f64>]) -> Option<usize> {
+        let anchors = vec![Anchor {
+            marker: 0,
+            last: Point2::new(40.0, 0.0),
+            moved: Vector2::new(20.0, 0.0),
+        }];
+        let lasts = [(1, Point2::origin(), 20.0)];
+        let coherent = |_: usize, _: usize| true;
+        assign_anchored(cost, places.len(), &lasts, places, anchors, &coherent)[0]
+    }
+
+    #[test]
+    fn neighbours_choose_between_places() {
+        // Two places about as likely by the marker's own motion: the one its neighbour's
+        // displacement points to is taken.
+        let places = [Point2::new(20.0, 0.0), Point2::new(80.0, 60.0)];
+        assert_eq!(assign_beside_an_anchor(&[8.0, 7.5], &places), Some(0));
+    }
+
+    #[test]
+    fn a_lone_place_against_the_neighbours_is_still_taken() {
+        // The marker's only place lies where its neighbour's displacement does not point (a
+        // release: markers that were pulled alike ring at their own frequencies), at a cost
+        // under staying unmatched: the neighbours choose between places, they do not turn
+        // the only one down.
+        let places = [Point2::new(80.0, 60.0)];
+        assert_eq!(assign_beside_an_anchor(&[10.0], &places), Some(0));
+        // Too costly on its own, it stays unmatched.
+        assert_eq!(assign_beside_an_anchor(&[12.5], &places), None);
+    }
 }

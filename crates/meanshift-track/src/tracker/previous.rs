@@ -8,11 +8,16 @@
 //! most of it; a read outside what was kept gets no previous frame (no streak weight, no
 //! still test) rather than stale pixels.
 
+use super::camera::{CameraPoints, MAX_CAMERA_SHIFT_PX};
 use super::*;
 
 /// Share of the frame above which the whole frame is copied in one go rather than region by
 /// region (the regions overlap, and one copy is cheaper than many short ones).
 const WHOLE_FRAME_SHARE: f64 = 0.5;
+/// Frames after the camera last moved during which the regions kept are grown by the
+/// largest shift looked for: a shake lasts a few frames, and the next frame reads the
+/// previous one where the camera's shift puts it.
+const SHAKE_HOLD_FRAMES: u32 = 5;
 
 /// The pixels of the last frame that the next one can read.
 #[derive(Debug, Clone)]
@@ -21,6 +26,13 @@ pub(super) struct PreviousFrame {
     image: RgbImage,
     /// The rectangles (inside the frame) that hold the last frame.
     kept: Vec<PixelRect>,
+    /// Edge points of the still scene (see [`camera`](super::camera)).
+    camera: CameraPoints,
+    /// The camera's shift from the frame kept to the one being tracked (zero until
+    /// [`PreviousFrame::measure_shift`] is called with it).
+    shift: [i32; 2],
+    /// Frames since the camera last moved (saturating).
+    since_shift: u32,
 }
 
 impl PreviousFrame {
@@ -29,7 +41,40 @@ impl PreviousFrame {
         Self {
             image: frame.clone(),
             kept: vec![image_rect(frame.width(), frame.height())],
+            camera: CameraPoints::default(),
+            shift: [0, 0],
+            since_shift: u32::MAX,
         }
+    }
+
+    /// All of the first frame, with the edge points of its still scene away from `markers`
+    /// (their windows and surroundings) to measure the camera's shake by.
+    pub(super) fn first(frame: &RgbImage, markers: &[PixelRect]) -> Self {
+        Self {
+            camera: CameraPoints::of(frame, markers),
+            ..Self::whole(frame)
+        }
+    }
+
+    /// Measure the camera's shift from the frame kept to `frame`, the next one.
+    pub(super) fn measure_shift(&mut self, frame: &RgbImage) {
+        self.shift = self.camera.shift_to(frame);
+        self.since_shift = if self.shift == [0, 0] {
+            self.since_shift.saturating_add(1)
+        } else {
+            0
+        };
+    }
+
+    /// The camera's shift from the frame kept to the one being tracked (pixels).
+    pub(super) fn shift(&self) -> Vector2<f64> {
+        Vector2::new(f64::from(self.shift[0]), f64::from(self.shift[1]))
+    }
+
+    /// [`PreviousFrame::shift`]: a pixel at `(x, y)` now showed the still scene that was at
+    /// `(x - dx, y - dy)` in the frame kept.
+    pub(super) fn offset(&self) -> [i32; 2] {
+        self.shift
     }
 
     /// All of `frame`, which the tracker may keep; the frame kept until now is handed back.
@@ -46,6 +91,18 @@ impl PreviousFrame {
         (r.is_empty() || self.kept.iter().any(|k| r.is_inside(k))).then_some(&self.image)
     }
 
+    /// The last frame and the camera's whole-pixel shift since it ([`PreviousFrame::offset`]),
+    /// if it was kept over all of `rect` moved back by the shift (what the pixels of `rect`
+    /// showed there), or over `rect` itself with no shift.
+    pub(super) fn covering_moved(&self, rect: PixelRect) -> Option<(&RgbImage, [i32; 2])> {
+        let [dx, dy] = self.offset();
+        let back = rect.shifted(-dx, -dy);
+        match self.covering(back) {
+            Some(image) => Some((image, [dx, dy])),
+            None => self.covering(rect).map(|image| (image, [0, 0])),
+        }
+    }
+
     /// Keep `frame` (the size of the first) over `regions`, or whole when they cover more than
     /// [`WHOLE_FRAME_SHARE`] of it.
     pub(super) fn keep(&mut self, frame: &RgbImage, regions: &[PixelRect]) {
@@ -54,11 +111,16 @@ impl PreviousFrame {
             *self = Self::whole(frame);
             return;
         }
+        let grow = if self.since_shift <= SHAKE_HOLD_FRAMES {
+            MAX_CAMERA_SHIFT_PX
+        } else {
+            0
+        };
         self.kept.clear();
         self.kept.extend(
             regions
                 .iter()
-                .map(|r| r.intersect(&whole))
+                .map(|r| r.grown(grow, grow).intersect(&whole))
                 .filter(|r| !r.is_empty()),
         );
         let area: u64 = self.kept.iter().map(PixelRect::area).sum();
