@@ -92,7 +92,66 @@ pub(crate) struct Streak<'a> {
     pub(crate) hue_share: f32,
     /// The marker's core colour (RGB; its hue, see `Tracker` `core_colour`).
     pub(crate) core: [f32; 3],
+    /// Where the marker was in the previous frame, and the background around it there.
+    pub(crate) trail: Option<Trail>,
 }
+
+/// The marker's window in the previous frame (in this frame's pixels, the camera's shift
+/// applied) and the colour around it there. Inside it the previous frame shows the marker,
+/// not what lies behind it: a streak's trailing end, where the marker was, would have its own
+/// colour for background and no streak weight, so the measurement ran ahead along the motion
+/// (by half the jump on a release frame drawn twice). There, a pixel of the previous frame
+/// nearer the marker's colour than the surroundings' is replaced by the surroundings'.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Trail {
+    pub(crate) rect: PixelRect,
+    pub(crate) around: [u8; 3],
+}
+
+impl Trail {
+    /// Replace, in `background` (the previous frame's RGB pixels under `row`, this frame's,
+    /// of row `y` at columns `x`, `x + step`, ...), the pixels inside the trail that are
+    /// nearer `marker` than the surroundings and that changed since (the marker left them,
+    /// at least in part: a marker or a look-alike that stays keeps its pixels, and its own
+    /// colour is what weighs it).
+    fn patch(
+        &self,
+        marker: [f32; 3],
+        (x, y): (i32, i32),
+        step: usize,
+        row: &[u8],
+        background: &mut [u8],
+    ) {
+        let r = self.rect;
+        if y < r.y || y >= r.bottom() as i32 {
+            return;
+        }
+        let around = self.around.map(f32::from);
+        for (k, (px, now)) in background
+            .chunks_exact_mut(3)
+            .zip(row.chunks_exact(3))
+            .enumerate()
+        {
+            let xk = i64::from(x) + (k * step) as i64;
+            if xk < i64::from(r.x) || xk >= r.right() {
+                continue;
+            }
+            let changed = px
+                .iter()
+                .zip(now)
+                .any(|(&b, &p)| b.abs_diff(p) > TRAIL_CHANGED_LEVEL);
+            let b = [f32::from(px[0]), f32::from(px[1]), f32::from(px[2])];
+            let to = |c: [f32; 3]| (0..3).map(|i| (b[i] - c[i]).powi(2)).sum::<f32>();
+            if changed && to(marker) < to(around) {
+                px.copy_from_slice(&self.around);
+            }
+        }
+    }
+}
+
+/// A pixel whose colour moved this much (8-bit levels, in some channel) since the previous
+/// frame has changed (colour noise and JPEG stay below it; the tracker's `CHANGED_LEVEL`).
+const TRAIL_CHANGED_LEVEL: u8 = 30;
 
 impl Streak<'_> {
     /// Raise the weights of a row of pixels (`row`, RGB) to their streak weights over the
@@ -749,6 +808,10 @@ impl Region {
                     extend_background(prev, size, (rect.x, y), len, s.shift, &mut scratch.shifted);
                     gather(&scratch.shifted, &mut scratch.background);
                 }
+                if let Some(t) = &s.trail {
+                    let (now, under) = (&scratch.gathered, &mut scratch.background);
+                    t.patch(s.colour, (rect.x, y), SPARSE_STEP_PX, now, under);
+                }
                 (s, &scratch.background[..])
             });
             scratch.weights.clear();
@@ -855,6 +918,7 @@ impl Region {
                     .pixels
                     .extend_from_slice(&raw[start..start + width * 3]);
                 if let Some((s, prev)) = previous {
+                    let from = block.background.len();
                     if s.shift == [0, 0] {
                         block
                             .background
@@ -869,6 +933,10 @@ impl Region {
                             s.shift,
                             &mut block.background,
                         );
+                    }
+                    if let Some(t) = &s.trail {
+                        let now = &block.pixels[from..];
+                        t.patch(s.colour, (sub.x, y), 1, now, &mut block.background[from..]);
                     }
                 }
             }
@@ -1171,6 +1239,7 @@ mod tests {
                     shade: STREAK_MIN_SHADE,
                     hue_share: STREAK_RESIDUAL[1],
                     core: [200.0, 35.0, 20.0],
+                    trail: None,
                 };
                 let open = PixelFilter {
                     depth: None,
@@ -1290,6 +1359,7 @@ mod tests {
                 shade: STREAK_MIN_SHADE,
                 hue_share,
                 core: [200.0, 40.0, 30.0],
+                trail: None,
             };
             let background: Vec<u8> = (0..3 * n).map(|k| ((k * 53 + 11) % 200) as u8).collect();
             let row: Vec<u8> = (0..3 * n)
@@ -1525,6 +1595,7 @@ mod tests {
                 shade: STREAK_MIN_SHADE,
                 hue_share: STREAK_RESIDUAL[1],
                 core: [210.0, 30.0, 25.0],
+                trail: None,
             }),
         };
         let (mut full, mut sparse) = (Region::default(), Region::default());
@@ -1572,6 +1643,7 @@ mod tests {
                     shade: STREAK_MIN_SHADE,
                     hue_share: STREAK_RESIDUAL[1],
                     core: [210.0, 30.0, 25.0],
+                    trail: None,
                 }),
             };
             let mut region = Region::default();
@@ -1592,6 +1664,91 @@ mod tests {
                 in_place > unchanged + 255.0 * 20.0,
                 "{sparse}: {in_place} against {unchanged}"
             );
+        }
+    }
+
+    /// A release filmed within one exposure: half of it the marker rests where it was in the
+    /// frame before, half of it it is 12 px on, so the frame holds two half-tone copies and
+    /// its truth is their midpoint. Without the trail only the copy that moved weighs (the
+    /// one at rest has the marker's own colour behind it in the frame before); with it both
+    /// do, on the sparse path as on the full one. What stays where the marker was weighs by
+    /// its own colour, with or without the trail.
+    #[test]
+    fn a_trail_weighs_the_half_of_a_release_drawn_where_the_marker_was() {
+        let (sky, red) = ([170u8, 200, 235], [210u8, 30, 25]);
+        let half: [u8; 3] =
+            std::array::from_fn(|c| ((u16::from(sky[c]) + u16::from(red[c])) / 2) as u8);
+        let disc = |cx: f64, cy: f64, x: u32, y: u32| {
+            let (dx, dy) = (f64::from(x) - cx, f64::from(y) - cy);
+            dx * dx + dy * dy <= 36.0
+        };
+        let previous = RgbImage::from_fn(120, 100, |x, y| {
+            image::Rgb(if disc(40.0, 50.0, x, y) { red } else { sky })
+        });
+        let frame = RgbImage::from_fn(120, 100, |x, y| {
+            image::Rgb(if disc(40.0, 50.0, x, y) || disc(52.0, 50.0, x, y) {
+                half
+            } else {
+                sky
+            })
+        });
+        // Learnt inside the disc: the sky does not weigh.
+        let (model, lookup) = red_marker(&previous, PixelRect::new(36, 46, 8, 8)).expect("learns");
+        let appearance = AppearanceModel::Hue { bins: 16 };
+        let trail = Trail {
+            rect: PixelRect::new(33, 43, 15, 15),
+            around: sky,
+        };
+        let weigh = |frame: &RgbImage, previous: &RgbImage, trail: Option<Trail>, sparse: bool| {
+            let filter = PixelFilter {
+                depth: None,
+                masked: &[],
+                paler: &[],
+                streak: Some(Streak {
+                    previous,
+                    shift: [0, 0],
+                    colour: [210.0, 30.0, 25.0],
+                    shade: STREAK_MIN_SHADE,
+                    hue_share: STREAK_RESIDUAL[1],
+                    core: [210.0, 30.0, 25.0],
+                    trail,
+                }),
+            };
+            let mut region = Region::default();
+            let rect = PixelRect::new(10, 20, 100, 60);
+            let at = sparse.then_some(Sparse {
+                threshold: TEST_THRESHOLD,
+                cell: (6, 6),
+            });
+            region.fill(&appearance, &model, &lookup, frame, rect, &filter, at);
+            let (mut sw, mut sx) = (0.0, 0.0);
+            for y in rect.y..rect.bottom() as i32 {
+                for x in rect.x..rect.right() as i32 {
+                    let w = f64::from(region.weights[region.index(x, y)]);
+                    sw += w;
+                    sx += w * f64::from(x);
+                }
+            }
+            (sw, sx / sw)
+        };
+        // A paler look-alike (0.6 of the marker over the sky) that stays in both frames.
+        let pale: [u8; 3] =
+            std::array::from_fn(|c| ((3 * u16::from(red[c]) + 2 * u16::from(sky[c])) / 5) as u8);
+        let look_alike = RgbImage::from_fn(120, 100, |x, y| {
+            image::Rgb(if disc(40.0, 50.0, x, y) { pale } else { sky })
+        });
+        for sparse in [false, true] {
+            let (_, ahead) = weigh(&frame, &previous, None, sparse);
+            assert!(ahead > 50.0, "{sparse}: {ahead}");
+            let (_, both) = weigh(&frame, &previous, Some(trail), sparse);
+            assert!((both - 46.0).abs() < 0.5, "{sparse}: {both}");
+            // What stays where the marker was (the marker at rest, or a look-alike the
+            // track sits on): as without the trail.
+            for still in [&previous, &look_alike] {
+                let (plain, _) = weigh(still, still, None, sparse);
+                let (with, _) = weigh(still, still, Some(trail), sparse);
+                assert_eq!(plain, with, "{sparse}");
+            }
         }
     }
 

@@ -8,7 +8,11 @@
 //! fast swing, which is where two markers of one look are confused. The fit uses the last
 //! [`HISTORY_FRAMES`] frames the marker was found in (central differences over runs of three
 //! consecutive frames) and is used only while it explains most of the acceleration; otherwise
-//! the prediction stays constant-velocity.
+//! the prediction stays constant-velocity. A history that holds a release (and the smooth
+//! pull before it) is motion the oscillator does not explain, so where the whole history
+//! fails the fit is tried over its latest runs ([`RECENT_RUNS`]) with a stricter share
+//! ([`MIN_EXPLAINED_RECENT`]): the swing is predicted through its turns from about 12 frames
+//! after the release instead of 30.
 //!
 //! The same history gives the marker's swing line (the principal axis of its recent
 //! positions, when they spread along one direction at least three times more than across
@@ -26,8 +30,15 @@ use nalgebra::{Matrix3, Point2, Vector2, Vector3};
 const HISTORY_FRAMES: u64 = 30;
 /// Least number of three-frame runs for a fit.
 const MIN_RUNS: usize = 12;
+/// Latest runs the fit is tried on, longest first, when it does not hold over the whole
+/// history: a release (or the smooth pull before it) in the history is motion the
+/// oscillator does not explain, and the swing after it is.
+const RECENT_RUNS: [usize; 3] = [22, 17, MIN_RUNS];
 /// Least share of the acceleration's variance the fit must explain on an axis.
 const MIN_EXPLAINED: f64 = 0.7;
+/// The same for a fit over the history's latest part only (fewer runs, where a few
+/// measurements pulled by a neighbour fit a swing that is not there).
+const MIN_EXPLAINED_RECENT: f64 = 0.85;
 /// Largest `ω` per frame trusted (a swing of a period shorter than about 4 frames is
 /// under-sampled: the differences no longer follow it).
 const MAX_OMEGA_PER_FRAME: f64 = 1.5;
@@ -240,7 +251,16 @@ impl Swing {
             return;
         }
         for (k, fit) in self.fit.iter_mut().enumerate() {
-            *fit = fit_axis(runs.iter().map(|r| (r[0][k], r[1][k], r[2][k])));
+            // The whole history first, then its latest parts (`RECENT_RUNS`).
+            let axis = |recent: &[[Vector2<f64>; 3]], least: f64| {
+                fit_axis(recent.iter().map(|r| (r[0][k], r[1][k], r[2][k])), least)
+            };
+            *fit = axis(&runs, MIN_EXPLAINED).or_else(|| {
+                RECENT_RUNS
+                    .iter()
+                    .filter(|&&w| w < runs.len())
+                    .find_map(|&w| axis(&runs[runs.len() - w..], MIN_EXPLAINED_RECENT))
+            });
         }
     }
 }
@@ -302,7 +322,10 @@ impl ConstantAcceleration {
 /// Least squares `a = α + β p + γ v` over `(p, v, a)` samples, centred for conditioning;
 /// `None` unless it explains [`MIN_EXPLAINED`] of the variance with a restoring, resolvable
 /// `β`.
-fn fit_axis(samples: impl Iterator<Item = (f64, f64, f64)> + Clone) -> Option<Vector3<f64>> {
+fn fit_axis(
+    samples: impl Iterator<Item = (f64, f64, f64)> + Clone,
+    least_explained: f64,
+) -> Option<Vector3<f64>> {
     let n = samples.clone().count() as f64;
     let (mut mp, mut mv, mut ma) = (0.0, 0.0, 0.0);
     for (p, v, a) in samples.clone() {
@@ -332,7 +355,7 @@ fn fit_axis(samples: impl Iterator<Item = (f64, f64, f64)> + Clone) -> Option<Ve
         .sum();
     let explained = 1.0 - residual / total;
     let omega2 = -c[1];
-    if !(explained >= MIN_EXPLAINED
+    if !(explained >= least_explained
         && omega2 > 0.0
         && omega2 <= MAX_OMEGA_PER_FRAME * MAX_OMEGA_PER_FRAME
         && c[2] <= 0.0)
@@ -374,6 +397,44 @@ mod tests {
         let truth = swing_at(40);
         assert!((predicted - truth).norm() < 0.5, "{predicted} vs {truth}");
         assert!((cv - truth).norm() > 2.0 * (predicted - truth).norm());
+    }
+
+    /// Pulled smoothly 40 px left of (200, 100) over frames 0-25, then released: a damped
+    /// swing of 12 frames' period about it.
+    fn released_at(frame: u64) -> Point2<f64> {
+        let t = frame as f64;
+        let x = if t <= 25.0 {
+            let s = t / 25.0;
+            -40.0 * s * s * (3.0 - 2.0 * s)
+        } else {
+            let omega = std::f64::consts::TAU / 12.0;
+            -40.0 * (-0.04 * omega * (t - 25.0)).exp() * (omega * (t - 25.0)).cos()
+        };
+        Point2::new(200.0 + x, 100.0 + 0.2 * (t * 1.7).sin())
+    }
+
+    #[test]
+    fn a_swing_after_a_pull_is_learnt_on_the_frames_since_the_release() {
+        let mut s = Swing::default();
+        // 30 frames of history: 13 of the pull, the release, 17 of the swing, predicted
+        // at its turn.
+        for f in 0..=42 {
+            s.record(f, released_at(f));
+        }
+        let (p, q) = (released_at(42), released_at(41));
+        let v = p - q;
+        let a = s.acceleration(p, v).expect("fitted on the swing");
+        let truth = released_at(43);
+        assert!((p + v + a - truth).norm() < 1.0, "{} vs {truth}", p + v + a);
+        assert!((p + v - truth).norm() > 4.0);
+        // Over the whole history the oscillator does not hold.
+        let runs: Vec<_> = (13..42)
+            .map(|f| {
+                let (a, b, c) = (released_at(f - 1), released_at(f), released_at(f + 1));
+                (b.x, 0.5 * (c.x - a.x), c.x - 2.0 * b.x + a.x)
+            })
+            .collect();
+        assert!(fit_axis(runs.iter().copied(), MIN_EXPLAINED).is_none());
     }
 
     #[test]

@@ -65,7 +65,8 @@ fn sparse_cell(m: &MarkerState) -> (i32, i32) {
 
 /// The weights of marker `m`'s model over `rect`, with its mask, depth gate and the `masked`
 /// rectangles, and its streak weights against the `previous` frame where it was kept over
-/// `rect` (recovering tracker, colour models). With `sparse`, a region of more than
+/// `rect` (recovering tracker, colour models), with the marker's trail there (see
+/// [`MarkerState::trail`]). With `sparse`, a region of more than
 /// [`SPARSE_MIN_WINDOWS`] windows is weighed only about the blobs of the marker's look in it
 /// (the same blobs and measurements as a full fill gives).
 #[allow(clippy::too_many_arguments)]
@@ -97,6 +98,11 @@ pub(super) fn fill(
             shade: m.shade,
             hue_share: m.hue_share,
             core: m.core_colour,
+            // The trail was taken on the frame before; the camera's shift moves it here.
+            trail: m.trail.map(|t| Trail {
+                rect: t.rect.shifted(shift[0], shift[1]),
+                ..t
+            }),
         });
     let filter = PixelFilter {
         depth: gate,
@@ -115,6 +121,87 @@ pub(super) fn fill(
     let model = &config.model;
     region.fill(model, &m.model, &m.lookup, frame, rect, &filter, sparse);
 }
+
+/// Where marker `m` is in `frame` (found there), and the median colour of a ring about its
+/// window, half a window wide, sampled every [`TRAIL_RING_STEP_PX`] pixels (see [`Trail`]);
+/// `None` when the marker was not found (or only on a weak measurement: a look-alike's place
+/// is no trail), or the ring lies out of the frame or is not plain.
+pub(super) fn trail(m: &MarkerState, frame: &RgbImage) -> Option<Trail> {
+    if !m.last_status.found() || m.searching() > 0 {
+        return None;
+    }
+    let (w, h) = m.size;
+    let window = PixelRect::centered_at(m.last_center, w, h);
+    let ring = window.grown(w / 2, h / 2);
+    let inside = ring.intersect(&image_rect(frame.width(), frame.height()));
+    if inside.is_empty() {
+        return None;
+    }
+    let mut channels: [Vec<u8>; 3] = Default::default();
+    for y in (inside.y..inside.bottom() as i32).step_by(TRAIL_RING_STEP_PX) {
+        for x in (inside.x..inside.right() as i32).step_by(TRAIL_RING_STEP_PX) {
+            if window.contains(x, y) {
+                continue;
+            }
+            let p = frame.get_pixel(x as u32, y as u32).0;
+            for (c, v) in channels.iter_mut().zip(p) {
+                c.push(v);
+            }
+        }
+    }
+    let n = channels[0].len();
+    if n < TRAIL_MIN_RING_PX {
+        return None;
+    }
+    let mut sorted = channels.clone();
+    let around = sorted.each_mut().map(|c| *c.select_nth_unstable(n / 2).1);
+    // Only a plain surrounding (the sky, a wall) says what lay behind the marker: where it
+    // sat on a limb, the limb uncovered as it leaves is no streak.
+    let near = (0..n)
+        .filter(|&k| {
+            (0..3)
+                .map(|c| (f32::from(channels[c][k]) - f32::from(around[c])).powi(2))
+                .sum::<f32>()
+                < STREAK_MIN_CONTRAST * STREAK_MIN_CONTRAST
+        })
+        .count();
+    if (near as f64) < TRAIL_PLAIN_SHARE * n as f64 {
+        return None;
+    }
+    Some(Trail {
+        rect: window,
+        around,
+    })
+}
+
+impl Tracker {
+    /// Whether no other marker's last place lies within [`TRAIL_APART_WINDOWS`] windows of
+    /// marker `i`'s: its window then holds it alone, and the trail of [`Trail`] is its. Two markers passing each other (or one
+    /// track sitting on the other's marker) share the window, and the other marker's
+    /// pixels leaving it are no trail of this one.
+    pub(super) fn alone(&self, i: usize) -> bool {
+        let m = &self.markers[i];
+        let side = window_px(m);
+        self.markers.iter().enumerate().all(|(k, o)| {
+            k == i
+                || (o.last_center - m.last_center).norm()
+                    > TRAIL_APART_WINDOWS * side.max(window_px(o))
+        })
+    }
+}
+
+/// See [`Tracker::alone`]: the previous windows of two markers this many windows apart (a
+/// window and a half between their centres) do not overlap, nor do their rings.
+const TRAIL_APART_WINDOWS: f64 = 2.0;
+
+/// Least number of ring pixels sampled inside the frame for a trail's surroundings.
+const TRAIL_MIN_RING_PX: usize = 12;
+/// The ring is sampled every this many pixels along rows and between rows (a plain
+/// surrounding needs no more; a tenth of the cost of tracking a marker otherwise).
+const TRAIL_RING_STEP_PX: usize = 2;
+/// Least share of the ring within [`STREAK_MIN_CONTRAST`] of its median colour: a plain
+/// surrounding.
+const TRAIL_PLAIN_SHARE: f64 = 0.9;
 
 /// The region's weights over the part of `window` inside it, row by row.
 fn window_weights(region: &Region, window: PixelRect) -> impl Iterator<Item = f32> + '_ {
@@ -959,6 +1046,55 @@ pub(super) fn window_depth(depth: &DepthView<'_>, window: PixelRect) -> Option<f
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_trail_is_kept_where_the_marker_was_over_a_plain_surrounding_only() -> Result<()> {
+        let mut t = crate::tracker::two_red_markers()?;
+        let m = &mut t.markers[0];
+        m.last_center = Point2::new(20.0, 30.0);
+        m.last_status = TrackStatus::Tracked;
+        let (w, h) = m.size;
+        let window = PixelRect::centered_at(m.last_center, w, h);
+        // Over the first frame's gray: the trail is the window.
+        let plain = crate::tracker::red_squares([20, 150]);
+        let trail = trail(m, &plain).expect("a plain surrounding");
+        assert_eq!(trail.rect, window);
+        assert_eq!(trail.around, [100, 110, 95]);
+        // A limb of bark across the ring (a fifth of it): what lay behind is not known.
+        let limb = RgbImage::from_fn(192, 64, |x, y| {
+            if y.abs_diff(30) <= 4 && x.abs_diff(20) <= 4 {
+                image::Rgb([215, 25, 30])
+            } else if y.abs_diff(30) <= 3 {
+                image::Rgb([120, 70, 40])
+            } else {
+                image::Rgb([100, 110, 95])
+            }
+        });
+        assert_eq!(trail_of(m, &limb), None);
+        // Not found in the frame before, or only weakly: no trail.
+        m.weak_run = 1;
+        assert_eq!(trail_of(m, &plain), None);
+        m.weak_run = 0;
+        m.last_status = TrackStatus::Predicted;
+        assert_eq!(trail_of(m, &plain), None);
+        Ok(())
+    }
+
+    #[test]
+    fn a_marker_is_alone_with_no_other_marker_within_two_windows() -> Result<()> {
+        let mut t = crate::tracker::two_red_markers()?;
+        t.markers[0].last_center = Point2::new(20.0, 30.0);
+        t.markers[1].last_center = Point2::new(150.0, 30.0);
+        assert!(t.alone(0) && t.alone(1));
+        // B's window (11 px) passing over A's ring: neither is alone.
+        t.markers[1].last_center = Point2::new(38.0, 30.0);
+        assert!(!t.alone(0) && !t.alone(1));
+        Ok(())
+    }
+
+    fn trail_of(m: &MarkerState, frame: &RgbImage) -> Option<Trail> {
+        trail(m, frame)
+    }
 
     /// A green disc of radius 8 px over a sky, its rim anti-aliased (each rim pixel the blend
     /// of disc and sky by the share of it the disc covers), and then moved `gray` of the way

@@ -69,7 +69,7 @@ use crate::model::{AppearanceModel, MarkerModel, marker_mask};
 use crate::rect::PixelRect;
 use crate::region::{
     Lookup, Mode, PixelFilter, Region, STREAK_MIN_CONTRAST, STREAK_MIN_HUE_SHARE, STREAK_MIN_SHADE,
-    STREAK_RESIDUAL, Sparse, Streak,
+    STREAK_RESIDUAL, Sparse, Streak, Trail,
 };
 use crate::swing::Swing;
 use crate::template::{Template, TemplateScratch};
@@ -502,6 +502,9 @@ struct MarkerState {
     /// [`TRUSTED_CONFIDENCE`], or cut): the search widens over them as over misses.
     weak_run: usize,
     last_status: TrackStatus,
+    /// Where the marker was in the last frame and what surrounds it there, for the streak's
+    /// trailing end in the next ([`Trail`]; set at the end of each frame).
+    trail: Option<Trail>,
     /// The surroundings, with [`TrackerConfig::context_check`].
     context: Option<Template>,
     /// The marker's own window as a gray template (gray model): its measurement.
@@ -876,7 +879,21 @@ impl Tracker {
         self.learn_parked();
         self.revise_excursions();
         self.repair_swaps();
+        self.leave_trails(frame);
         Ok(())
+    }
+
+    /// Each colour marker's trail in `frame` for the next frame's streaks (see [`Trail`]):
+    /// where it was found, alone ([`Tracker::alone`]), over a plain surrounding.
+    fn leave_trails(&mut self, frame: &RgbImage) {
+        let streaks =
+            self.config.recovery && !matches!(self.config.model, AppearanceModel::Gray { .. });
+        for i in 0..self.markers.len() {
+            let trail = (streaks && self.alone(i))
+                .then(|| blobs::trail(&self.markers[i], frame))
+                .flatten();
+            self.markers[i].trail = trail;
+        }
     }
 
     /// A frame the tracker can take: not empty, the first frame's size.
@@ -932,6 +949,7 @@ impl Tracker {
         m.reach_px = m.reach_px.max((center - m.home).norm());
         m.misses = 0;
         m.last_status = TrackStatus::Set;
+        m.trail = None;
         let observation = Observation {
             center: Some(center),
             window: PixelRect::centered_at(center, m.size.0, m.size.1),

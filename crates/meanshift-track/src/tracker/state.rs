@@ -35,6 +35,7 @@ impl MarkerState {
             depth_m: None,
             misses: 0,
             weak_run: 0,
+            trail: None,
             last_status: TrackStatus::Tracked,
             context: None,
             context_level: 1.0,

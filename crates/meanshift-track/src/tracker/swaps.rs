@@ -39,7 +39,10 @@
 //! before it. A branch marker swings about its rest place (its home): when each track's line
 //! runs through the other marker's home and one of them far from its own, the two are
 //! exchanged ([`Tracker::homes_swapped`]; only with lines learnt from the tracks' own
-//! histories, no exchange in the last [`MAX_REVISED_FRAMES`] frames).
+//! histories, no exchange in the last [`MAX_REVISED_FRAMES`] frames). Two markers that swing
+//! along one line (one above the other on a stem pulled along it) have lines through both
+//! homes; there each track's recent mean position, the rest place a damped swing centres
+//! on, is compared with the homes ([`CENTRE_NEAR_SHARE`]).
 //!
 //! A signature is only refined by a line along the same direction that is about as tight
 //! and centred on it: a track drifting onto another marker's path fits a wider or shifted
@@ -92,6 +95,15 @@ const CROSSING_MIN_SIDE: usize = 3;
 const CROSSING_RATIO: f64 = 0.25;
 /// ... and well in themselves: root-mean-square residual, windows.
 const CROSSING_MAX_RMS_WINDOWS: f64 = 0.3;
+
+/// Homes at least this many windows apart can be told apart by where their tracks swing
+/// about ([`Tracker::homes_swapped`]).
+const HOMES_APART_WINDOWS: f64 = 2.0;
+/// A track swings about another marker's home when its recent positions' mean lies within
+/// this share of the two homes' distance of it (and the other track's about its home): a
+/// damped swing over a period or more has its mean at its rest place; a pull pulls both
+/// tracks' means the same way, so it cannot move each onto the other's home.
+const CENTRE_NEAR_SHARE: f64 = 0.25;
 
 /// How far back the observations are exchanged at most (the swing history's length): a
 /// caller that reads each frame's result at once sees at most this many earlier frames of a
@@ -250,10 +262,18 @@ impl Tracker {
         }
         let (own_i, own_j) = (li.offset(a.home), lj.offset(b.home));
         let (other_i, other_j) = (li.offset(b.home), lj.offset(a.home));
-        own_i.max(own_j) >= STOLEN_OWN_OFFSET
+        let lines_swapped = own_i.max(own_j) >= STOLEN_OWN_OFFSET
             && other_i <= SWAP_MAX_OFFSET
             && other_j <= SWAP_MAX_OFFSET
-            && other_i + other_j < SWAP_RATIO * (own_i + own_j)
+            && other_i + other_j < SWAP_RATIO * (own_i + own_j);
+        // Two markers swinging along one line (one above the other on a stem pulled along
+        // it) have lines through both homes; where each swings about tells them apart.
+        let apart = (a.home - b.home).norm();
+        let window = window_px(a).max(window_px(b));
+        let centres_swapped = apart >= HOMES_APART_WINDOWS * window
+            && (li.centre - b.home).norm() <= CENTRE_NEAR_SHARE * apart
+            && (lj.centre - a.home).norm() <= CENTRE_NEAR_SHARE * apart;
+        lines_swapped || centres_swapped
     }
 
     /// Where marker `k` was found in the last [`SWAP_FRAMES`] frames.
@@ -613,6 +633,71 @@ mod tests {
                 .iter()
                 .all(|o| o.center.is_some_and(|c| c.x > 100.0))
         );
+        Ok(())
+    }
+
+    /// A and B with homes 60 px apart on one horizontal line, after 24 frames of tracks
+    /// swinging 40 px each way along it (so that each line runs through both homes) about
+    /// `centre_a` and `centre_b`.
+    fn run_one_line(centre_a: f64, centre_b: f64) -> Result<Tracker> {
+        let mut t = two_red_markers()?;
+        t.markers[0].home = Point2::new(60.0, 30.0);
+        t.markers[1].home = Point2::new(120.0, 30.0);
+        for k in 0..24_u32 {
+            let s = 40.0 * (f64::from(k) * std::f64::consts::TAU / 12.0).cos();
+            let wobble = 0.3 * f64::from(k % 2);
+            let (a, b) = (
+                Point2::new(centre_a + s, 30.0 + wobble),
+                Point2::new(centre_b - s, 30.0 - wobble),
+            );
+            push(&mut t, a, b);
+            let frame = u64::from(k) + 1;
+            t.markers[0].swing.record(frame, a);
+            t.markers[1].swing.record(frame, b);
+        }
+        for m in &mut t.markers {
+            m.last_status = TrackStatus::Tracked;
+        }
+        t.repair_swaps();
+        Ok(t)
+    }
+
+    #[test]
+    fn two_on_one_line_are_told_by_where_they_swing_about() -> Result<()> {
+        // Each line runs through both homes: the lines alone tell nothing.
+        let t = run_one_line(120.0, 60.0)?;
+        let (la, lb) = (
+            t.markers[0].swing.line().expect("a line"),
+            t.markers[1].swing.line().expect("a line"),
+        );
+        assert!(la.offset(t.markers[0].home) < 1.0 && lb.offset(t.markers[1].home) < 1.0);
+        // A's track swung about B's home and B's about A's: exchanged, A's swing about A's
+        // home, and its frames since the two last met are A's marker's.
+        let centre = |t: &Tracker| t.markers[0].swing.line().expect("a line").centre.x;
+        assert!((centre(&t) - 60.0).abs() < 5.0, "{}", centre(&t));
+        assert_eq!(t.markers[0].id, "A");
+        let (a, b) = (&t.tracks[0].observations, &t.tracks[1].observations);
+        let met = (1..a.len())
+            .rev()
+            .find(|&f| match (a[f].center, b[f].center) {
+                (Some(p), Some(q)) => (p - q).norm() <= TOGETHER_WINDOWS * 11.0,
+                _ => false,
+            });
+        let from = (met.expect("met") + 1).min(a.len() - SWAP_FRAMES);
+        for (f, o) in a.iter().enumerate().skip(1) {
+            let s = 40.0 * ((f - 1) as f64 * std::f64::consts::TAU / 12.0).cos();
+            let x = if f >= from { 60.0 - s } else { 120.0 + s };
+            assert!(
+                o.center.is_some_and(|c| (c.x - x).abs() < 1e-9),
+                "frame {f}"
+            );
+        }
+        // Each about its own home: left alone.
+        let t = run_one_line(60.0, 120.0)?;
+        assert!((centre(&t) - 60.0).abs() < 5.0, "{}", centre(&t));
+        // Both pulled 60 px the same way (A's on B's home, B's beyond it): not a swap.
+        let t = run_one_line(120.0, 180.0)?;
+        assert!((centre(&t) - 120.0).abs() < 5.0, "{}", centre(&t));
         Ok(())
     }
 
