@@ -11,7 +11,7 @@
 //! the prediction stays constant-velocity. A history that holds a release (and the smooth
 //! pull before it) is motion the oscillator does not explain, so where the whole history
 //! fails the fit is tried over its latest runs ([`RECENT_RUNS`]) with a stricter share
-//! ([`MIN_EXPLAINED_RECENT`]): the swing is predicted through its turns from about 12 frames
+//! ([`MIN_EXPLAINED_RECENT`]): the swing is predicted through its turns from about 17 frames
 //! after the release instead of 30.
 //!
 //! The same history gives the marker's swing line (the principal axis of its recent
@@ -32,8 +32,10 @@ const HISTORY_FRAMES: u64 = 30;
 const MIN_RUNS: usize = 12;
 /// Latest runs the fit is tried on, longest first, when it does not hold over the whole
 /// history: a release (or the smooth pull before it) in the history is motion the
-/// oscillator does not explain, and the swing after it is.
-const RECENT_RUNS: [usize; 3] = [22, 17, MIN_RUNS];
+/// oscillator does not explain, and the swing after it is. Not fewer than 17: over 12,
+/// a few measurements of a marker half behind another of its look fit a swing toward
+/// that one (`docs/validation.md`).
+const RECENT_RUNS: [usize; 2] = [22, 17];
 /// Least share of the acceleration's variance the fit must explain on an axis.
 const MIN_EXPLAINED: f64 = 0.7;
 /// The same for a fit over the history's latest part only (fewer runs, where a few

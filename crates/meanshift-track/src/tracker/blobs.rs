@@ -176,9 +176,9 @@ pub(super) fn trail(m: &MarkerState, frame: &RgbImage) -> Option<Trail> {
 
 impl Tracker {
     /// Whether no other marker's last place lies within [`TRAIL_APART_WINDOWS`] windows of
-    /// marker `i`'s: its window then holds it alone, and the trail of [`Trail`] is its. Two markers passing each other (or one
-    /// track sitting on the other's marker) share the window, and the other marker's
-    /// pixels leaving it are no trail of this one.
+    /// marker `i`'s: its window then holds it alone, and the trail of [`Trail`] is its. Two
+    /// markers passing each other (or one track sitting on the other's marker) share the
+    /// window, and the other marker's pixels leaving it are no trail of this one.
     pub(super) fn alone(&self, i: usize) -> bool {
         let m = &self.markers[i];
         let side = window_px(m);
@@ -190,14 +190,15 @@ impl Tracker {
     }
 }
 
-/// See [`Tracker::alone`]: the previous windows of two markers this many windows apart (a
-/// window and a half between their centres) do not overlap, nor do their rings.
+/// See [`Tracker::alone`]: a marker's ring reaches a window out from its centre, so the
+/// windows and rings of two markers this many windows apart do not meet.
 const TRAIL_APART_WINDOWS: f64 = 2.0;
 
 /// Least number of ring pixels sampled inside the frame for a trail's surroundings.
 const TRAIL_MIN_RING_PX: usize = 12;
-/// The ring is sampled every this many pixels along rows and between rows (a plain
-/// surrounding needs no more; a tenth of the cost of tracking a marker otherwise).
+/// The ring is sampled every this many pixels along rows and between rows: a plain
+/// surrounding needs no more, and it reads a quarter of the pixels (every pixel gave the
+/// same figures on the tuning sets but for one crossing, `docs/validation.md`).
 const TRAIL_RING_STEP_PX: usize = 2;
 /// Least share of the ring within [`STREAK_MIN_CONTRAST`] of its median colour: a plain
 /// surrounding.
@@ -1057,9 +1058,9 @@ mod tests {
         let window = PixelRect::centered_at(m.last_center, w, h);
         // Over the first frame's gray: the trail is the window.
         let plain = crate::tracker::red_squares([20, 150]);
-        let trail = trail(m, &plain).expect("a plain surrounding");
-        assert_eq!(trail.rect, window);
-        assert_eq!(trail.around, [100, 110, 95]);
+        let left = trail(m, &plain).expect("a plain surrounding");
+        assert_eq!(left.rect, window);
+        assert_eq!(left.around, [100, 110, 95]);
         // A limb of bark across the ring (a fifth of it): what lay behind is not known.
         let limb = RgbImage::from_fn(192, 64, |x, y| {
             if y.abs_diff(30) <= 4 && x.abs_diff(20) <= 4 {
@@ -1070,13 +1071,13 @@ mod tests {
                 image::Rgb([100, 110, 95])
             }
         });
-        assert_eq!(trail_of(m, &limb), None);
+        assert_eq!(trail(m, &limb), None);
         // Not found in the frame before, or only weakly: no trail.
         m.weak_run = 1;
-        assert_eq!(trail_of(m, &plain), None);
+        assert_eq!(trail(m, &plain), None);
         m.weak_run = 0;
         m.last_status = TrackStatus::Predicted;
-        assert_eq!(trail_of(m, &plain), None);
+        assert_eq!(trail(m, &plain), None);
         Ok(())
     }
 
@@ -1090,10 +1091,6 @@ mod tests {
         t.markers[1].last_center = Point2::new(38.0, 30.0);
         assert!(!t.alone(0) && !t.alone(1));
         Ok(())
-    }
-
-    fn trail_of(m: &MarkerState, frame: &RgbImage) -> Option<Trail> {
-        trail(m, frame)
     }
 
     /// A green disc of radius 8 px over a sky, its rim anti-aliased (each rim pixel the blend
