@@ -1584,20 +1584,7 @@ mod tests {
         rect: PixelRect,
     ) -> (Region, Region) {
         let appearance = AppearanceModel::Hue { bins: 16 };
-        let filter = PixelFilter {
-            depth: None,
-            masked,
-            paler: &[],
-            streak: Some(Streak {
-                previous,
-                shift: [0, 0],
-                colour: [210.0, 30.0, 25.0],
-                shade: STREAK_MIN_SHADE,
-                hue_share: STREAK_RESIDUAL[1],
-                core: [210.0, 30.0, 25.0],
-                trail: None,
-            }),
-        };
+        let filter = red_filter(previous, [0, 0], masked, None);
         let (mut full, mut sparse) = (Region::default(), Region::default());
         full.fill(&appearance, model, lookup, frame, rect, &filter, None);
         let (threshold, cell) = (TEST_THRESHOLD, (6, 6));
@@ -1632,20 +1619,7 @@ mod tests {
         let (model, lookup) = red_marker(&first, PixelRect::new(13, 13, 15, 15)).expect("learns");
         let appearance = AppearanceModel::Hue { bins: 16 };
         let weigh = |frame: &RgbImage, previous: &RgbImage, shift: [i32; 2], sparse: bool| -> f64 {
-            let filter = PixelFilter {
-                depth: None,
-                masked: &[],
-                paler: &[],
-                streak: Some(Streak {
-                    previous,
-                    shift,
-                    colour: [210.0, 30.0, 25.0],
-                    shade: STREAK_MIN_SHADE,
-                    hue_share: STREAK_RESIDUAL[1],
-                    core: [210.0, 30.0, 25.0],
-                    trail: None,
-                }),
-            };
+            let filter = red_filter(previous, shift, &[], None);
             let mut region = Region::default();
             let rect = PixelRect::new(10, 15, 100, 70);
             let at = sparse.then_some(Sparse {
@@ -1664,6 +1638,30 @@ mod tests {
                 in_place > unchanged + 255.0 * 20.0,
                 "{sparse}: {in_place} against {unchanged}"
             );
+        }
+    }
+
+    /// The filter of a red marker (210, 30, 25) with streaks over `previous` moved by the
+    /// camera's `shift`, the `masked` rectangles and the `trail`.
+    fn red_filter<'a>(
+        previous: &'a RgbImage,
+        shift: [i32; 2],
+        masked: &'a [PixelRect],
+        trail: Option<Trail>,
+    ) -> PixelFilter<'a> {
+        PixelFilter {
+            depth: None,
+            masked,
+            paler: &[],
+            streak: Some(Streak {
+                previous,
+                shift,
+                colour: [210.0, 30.0, 25.0],
+                shade: STREAK_MIN_SHADE,
+                hue_share: STREAK_RESIDUAL[1],
+                core: [210.0, 30.0, 25.0],
+                trail,
+            }),
         }
     }
 
@@ -1700,20 +1698,7 @@ mod tests {
             around: sky,
         };
         let weigh = |frame: &RgbImage, previous: &RgbImage, trail: Option<Trail>, sparse: bool| {
-            let filter = PixelFilter {
-                depth: None,
-                masked: &[],
-                paler: &[],
-                streak: Some(Streak {
-                    previous,
-                    shift: [0, 0],
-                    colour: [210.0, 30.0, 25.0],
-                    shade: STREAK_MIN_SHADE,
-                    hue_share: STREAK_RESIDUAL[1],
-                    core: [210.0, 30.0, 25.0],
-                    trail,
-                }),
-            };
+            let filter = red_filter(previous, [0, 0], &[], trail);
             let mut region = Region::default();
             let rect = PixelRect::new(10, 20, 100, 60);
             let at = sparse.then_some(Sparse {

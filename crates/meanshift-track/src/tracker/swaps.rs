@@ -516,6 +516,14 @@ mod tests {
         }
     }
 
+    /// [`push`], and A's and B's swings record it as frame `k + 1`.
+    fn push_swinging(t: &mut Tracker, k: u32, a: Point2<f64>, b: Point2<f64>) {
+        push(t, a, b);
+        let frame = u64::from(k) + 1;
+        t.markers[0].swing.record(frame, a);
+        t.markers[1].swing.record(frame, b);
+    }
+
     /// `t` after [`Tracker::repair_swaps`], with A's centres before it.
     fn repaired(mut t: Tracker) -> (Tracker, Vec<Option<Point2<f64>>>) {
         let before = t.tracks[0].observations.iter().map(|o| o.center).collect();
@@ -589,10 +597,7 @@ mod tests {
             } else {
                 (horizontal, vertical)
             };
-            push(&mut t, a, b);
-            let frame = u64::from(k) + 1;
-            t.markers[0].swing.record(frame, a);
-            t.markers[1].swing.record(frame, b);
+            push_swinging(&mut t, k, a, b);
         }
         for m in &mut t.markers {
             m.last_status = TrackStatus::Tracked;
@@ -650,10 +655,7 @@ mod tests {
                 Point2::new(centre_a + s, 30.0 + wobble),
                 Point2::new(centre_b - s, 30.0 - wobble),
             );
-            push(&mut t, a, b);
-            let frame = u64::from(k) + 1;
-            t.markers[0].swing.record(frame, a);
-            t.markers[1].swing.record(frame, b);
+            push_swinging(&mut t, k, a, b);
         }
         for m in &mut t.markers {
             m.last_status = TrackStatus::Tracked;
