@@ -163,6 +163,10 @@ const UNMATCHED_COST: f64 = 12.0;
 /// Distance (windows, plus one frame's motion) from the border within which a marker last
 /// seen there counts as having left the frame when predicted outside it.
 const BORDER_WINDOWS: f64 = 2.0;
+/// Frames of its speed at leaving that a marker that left the frame may have come back in by
+/// when it is first seen again (besides [`BORDER_WINDOWS`]): the frame it came in, partly
+/// visible and not found, and the next.
+const ENTRY_SPEED_FRAMES: f64 = 2.0;
 /// Cost of taking, by a manoeuvre, a place that lies in another marker's normal gate.
 const OWNED_COST: f64 = 6.0;
 /// Cost (nats) of taking a place at another marker's home (its first-frame centre,
@@ -498,6 +502,9 @@ struct MarkerState {
     depth_m: Option<f64>,
     /// Frames since the last measurement.
     misses: usize,
+    /// Speed (pixels per frame) at the first frame of the current run of misses: how deep
+    /// into the frame a marker that left it can be when it is first seen again.
+    exit_speed_px: f64,
     /// Frames in a row followed on a measurement too weak to report as found (under
     /// [`TRUSTED_CONFIDENCE`], or cut): the search widens over them as over misses.
     weak_run: usize,

@@ -34,6 +34,7 @@ impl MarkerState {
             },
             depth_m: None,
             misses: 0,
+            exit_speed_px: 0.0,
             weak_run: 0,
             trail: None,
             last_status: TrackStatus::Tracked,
@@ -480,6 +481,9 @@ impl MarkerState {
         (width, height): (u32, u32),
     ) -> Observation {
         self.misses += 1;
+        if self.misses == 1 {
+            self.exit_speed_px = self.filter.velocity.norm();
+        }
         self.filter.velocity *= COAST_VELOCITY_DECAY;
         let pred = clamp_into(self.filter.position, width, height);
         let lost = self.misses > config.max_coast_frames;

