@@ -858,7 +858,11 @@ impl Region {
         // A full fill writes every weight and bin, so what the buffers held stays only until
         // it is overwritten; a sparse one leaves 0 (no bin) where it does not weigh.
         self.weights.resize(area, 0.0);
-        self.lifts.resize(area);
+        // Read only where this fill weighs (see `Region::grayer_streaks`): never shrunk, so
+        // that regions of changing size do not zero it again and again.
+        if self.lifts.scale.len() < area {
+            self.lifts.resize(area);
+        }
         self.raised_rows.clear();
         self.raised_rows.resize(rect.height.max(0) as usize, false);
         if kernel {

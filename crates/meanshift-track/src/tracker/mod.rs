@@ -167,6 +167,9 @@ const BORDER_WINDOWS: f64 = 2.0;
 /// when it is first seen again (besides [`BORDER_WINDOWS`]): the frame it came in, partly
 /// visible and not found, and the next.
 const ENTRY_SPEED_FRAMES: f64 = 2.0;
+/// Least speed (windows per frame) a marker that left the frame is taken to come back at: it
+/// may have left slowly, pulled out, and come back released.
+const ENTRY_RELEASE_WINDOWS: f64 = 2.0;
 /// Cost of taking, by a manoeuvre, a place that lies in another marker's normal gate.
 const OWNED_COST: f64 = 6.0;
 /// Cost (nats) of taking a place at another marker's home (its first-frame centre,

@@ -345,7 +345,8 @@ impl Tracker {
         // generator's combined seed 1005 a marker gone out at the right took another's
         // place 200 px inside). Once the prediction is deeper than that (its swing or its
         // hold brings it back), the gate is as for any marker.
-        let entry_px = BORDER_WINDOWS * side + ENTRY_SPEED_FRAMES * m.exit_speed_px;
+        let entry_px = BORDER_WINDOWS * side
+            + ENTRY_SPEED_FRAMES * m.exit_speed_px.max(ENTRY_RELEASE_WINDOWS * side);
         let entry = (m.misses > 0 && border_gap < BORDER_WINDOWS * side + m.exit_speed_px)
             .then(|| Edge::nearest(m.last_center, (width, height)))
             .filter(|e| e.depth(filter.position, (width, height)) <= entry_px)
@@ -988,37 +989,41 @@ mod tests {
 
     /// A marker gone out of the frame across a border comes back across it: while it is
     /// missing and predicted beyond or near that border, it is taken again only within two
-    /// windows and two frames of its leaving speed of it (the third generator's markers
-    /// pulled out of the top were taken again on look-alikes 100-250 px below the edge).
+    /// windows and two frames of its leaving speed (at least two windows a frame) of it
+    /// (the third generator's markers pulled out of the top were taken again on look-alikes
+    /// 100-250 px below the edge).
     #[test]
     fn a_marker_gone_out_across_a_border_is_taken_again_only_near_it() -> Result<()> {
         let mut t = two_red_markers()?;
         let side = window_px(&t.markers[0]);
-        let (speed, x) = (4.0, 40.0);
-        let entry = 2.0 * side + 2.0 * speed;
+        let (speed, y) = (4.0, 30.0);
+        let entry = 2.0 * side + 2.0 * (2.0 * side);
+        // Last found 3 px inside the left border, gone out of it at 4 px a frame, missing
+        // for long enough that its gate about the border point reaches beyond `entry`.
         let m = &mut t.markers[0];
-        m.last_center = Point2::new(x, 3.0);
-        m.misses = 3;
+        m.last_center = Point2::new(3.0, y);
+        m.misses = 8;
         m.exit_speed_px = speed;
-        m.filter.position = Point2::new(x, -20.0);
+        m.filter.position = Point2::new(-20.0, y);
         let gate = t.gate(0);
-        assert!(gate.admits(Point2::new(x + 10.0, entry - 1.0)));
-        assert!(!gate.admits(Point2::new(x + 10.0, entry + 2.0)));
-        assert!(!gate.admits(Point2::new(150.0, entry + 2.0)));
+        assert!(gate.radius_px > entry + 10.0, "{} {entry}", gate.radius_px);
+        assert!(gate.admits(Point2::new(entry - 1.0, y)));
+        assert!(!gate.admits(Point2::new(entry + 2.0, y)));
+        assert!(!gate.admits(Point2::new(150.0, y)));
         // Predicted back inside, deeper than that (its swing or its hold brought it back):
         // anywhere, as any missing marker.
-        t.markers[0].filter.position = Point2::new(x, entry + 5.0);
+        t.markers[0].filter.position = Point2::new(entry + 5.0, y);
         assert!(t.gate(0).admits(Point2::new(150.0, 60.0)));
         // Found in the last frame: a jump from the border is no re-entry (the gate of a
         // marker predicted out of the frame still holds it about the border point).
         let m = &mut t.markers[0];
         m.misses = 0;
-        m.filter.position = Point2::new(x, -20.0);
+        m.filter.position = Point2::new(-20.0, y);
         assert_eq!(t.gate(0).entry, None);
         // Last found in the middle of the frame: not gone out across a border.
         let m = &mut t.markers[0];
-        m.misses = 3;
-        m.last_center = Point2::new(x, 32.0);
+        m.misses = 8;
+        m.last_center = Point2::new(96.0, y);
         assert_eq!(t.gate(0).entry, None);
         Ok(())
     }
