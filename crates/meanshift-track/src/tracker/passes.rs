@@ -323,12 +323,9 @@ impl Tracker {
         // it on the far side).
         // (Only a marker last seen near the border has left: one predicted out of the
         // frame from the middle of it has a wrong velocity, and is searched everywhere.)
-        let border_gap = {
-            let c = m.last_center;
-            c.x.min(c.y)
-                .min(f64::from(width) - c.x)
-                .min(f64::from(height) - c.y)
-        };
+        let size = (width, height);
+        let exit_edge = Edge::nearest(m.last_center, size);
+        let border_gap = exit_edge.depth(m.last_center, size);
         let outside = (filter.position - center).norm() > 0.5 * side
             && border_gap < BORDER_WINDOWS * side + filter.velocity.norm();
         let border_px = (GATE_CHI2 * gate_var).sqrt() + (m.misses as f64 + 1.0) * side;
@@ -347,17 +344,17 @@ impl Tracker {
         // hold brings it back), the gate is as for any marker.
         let entry_px = BORDER_WINDOWS * side
             + ENTRY_SPEED_FRAMES * m.exit_speed_px.max(ENTRY_RELEASE_WINDOWS * side);
-        let entry = (m.misses > 0 && border_gap < BORDER_WINDOWS * side + m.exit_speed_px)
-            .then(|| Edge::nearest(m.last_center, (width, height)))
-            .filter(|e| e.depth(filter.position, (width, height)) <= entry_px)
-            .map(|e| (e, entry_px));
+        let entry = (m.misses > 0
+            && border_gap < BORDER_WINDOWS * side + m.exit_speed_px
+            && exit_edge.depth(filter.position, size) <= entry_px)
+            .then_some((exit_edge, entry_px));
         Gate {
             wide_var,
             center,
             outside,
             radius_px,
             entry,
-            size: (width, height),
+            size,
         }
     }
 
