@@ -28,7 +28,13 @@ pub enum AppearanceModel {
     },
     /// RGB histogram with kernel weighting and the Bhattacharyya coefficient (Comaniciu,
     /// Ramesh, Meer 2003, "Kernel-based object tracking", IEEE TPAMI 25(5)): the mean-shift
-    /// weights are `sqrt(q_u / p_u)` of the target and candidate histograms.
+    /// weights are `sqrt(q_u / p_u)` of the target and candidate histograms. With
+    /// [`crate::TrackerConfig::background_weighting`] the target histogram is background
+    /// weighted (their section 6.2); holes (black in every channel, see
+    /// `HOLE_LEVEL`) are no data; every colour of the marker weighs alike in the
+    /// back-projection its blobs are measured on; and with recovery on, each frame is read
+    /// as the first frame's light would have shown it (the light's change per channel
+    /// measured on a sparse grid of the frame), since RGB bins, unlike a hue, move with it.
     Rgb {
         /// Bins per channel over 0..256.
         bins: usize,
@@ -109,8 +115,14 @@ impl AppearanceModel {
 pub(crate) enum MarkerModel {
     /// Back-projection of a normalised histogram (hue, hue–saturation, gray).
     Projected { projector: BackProjector },
-    /// Kernel-weighted target histogram `q` (sums to 1) for Bhattacharyya tracking, and
-    /// `q` scaled to 0..255 per bin as a back-projection for detection.
+    /// Kernel-weighted target histogram `q` (sums to 1; with the tracker's
+    /// `background_weighting` each bin times the share of its pixels about the window that
+    /// lie inside it, `h / (h + o)`, Comaniciu et al.'s section 6.2 as Ning et al. 2012
+    /// correct it: the target only) for Bhattacharyya tracking, and per bin a weight 0..255
+    /// for the back-projection that blobs are found and measured on: 255 times
+    /// `min(1, q / (KERNEL_FULL_WEIGHT_SHARE top))` times that share again, so that every
+    /// colour of the marker weighs alike and the background's colours, spread thin over many
+    /// bins by noise, stay near 0.
     Kernel {
         hist: Histogram,
         q: Vec<f64>,
@@ -151,9 +163,12 @@ impl MarkerModel {
         let (w, h) = (window.width as usize, window.height as usize);
         let mut used = 0usize;
         let mut q = vec![0.0; hist.values().len()];
+        let holes = holes_are_no_data(model);
         for (k, f) in features.iter().enumerate() {
-            let Some(f) = f else { continue };
-            let Some(bin) = hist.bin_of(f) else { continue };
+            let Some(f) = f.filter(|f| !(holes && is_hole(*f))) else {
+                continue;
+            };
+            let Some(bin) = hist.bin_of(&f) else { continue };
             used += 1;
             hist.values_mut()[bin] += 1.0;
             // Epanechnikov kernel profile over the window's inscribed ellipse.
@@ -164,10 +179,15 @@ impl MarkerModel {
             }
         }
         if used == 0 {
+            let what = if holes {
+                "has data (black is a hole for it)"
+            } else {
+                "passes its mask"
+            };
             return Err(TrackError::EmptyModel {
                 id: id.to_string(),
                 reason: format!(
-                    "none of its {} pixels passes the {} model's mask",
+                    "none of its {} pixels {what} under the {} model",
                     window.area(),
                     model.name()
                 ),
@@ -183,8 +203,30 @@ impl MarkerModel {
                     });
                 }
                 q.iter_mut().for_each(|v| *v /= total);
+                // Per bin, the share of its pixels about the window that lie in it (1 where
+                // the tracker does not weigh by the background).
+                let mut inside = vec![1.0f64; q.len()];
+                if background_weighting {
+                    let ring = ring_counts(&hist, frame, window, model, mask);
+                    for ((share, &h), &o) in inside.iter_mut().zip(hist.values()).zip(&ring) {
+                        let h = f64::from(h);
+                        if h > 0.0 {
+                            *share = h / (h + o);
+                        }
+                    }
+                    q.iter_mut().zip(&inside).for_each(|(v, s)| *v *= s);
+                    let kept: f64 = q.iter().sum();
+                    if kept > 0.0 {
+                        q.iter_mut().for_each(|v| *v /= kept);
+                    }
+                }
                 let top = q.iter().copied().fold(0.0, f64::max);
-                let weight = q.iter().map(|&v| (255.0 * v / top) as f32).collect();
+                let full = KERNEL_FULL_WEIGHT_SHARE * top;
+                let weight = q
+                    .iter()
+                    .zip(&inside)
+                    .map(|(&v, &share)| (255.0 * (v / full).min(1.0) * share) as f32)
+                    .collect();
                 Ok(Self::Kernel { hist, q, weight })
             }
             _ => {
@@ -204,6 +246,36 @@ impl MarkerModel {
     }
 }
 
+/// A pixel no brighter than this in every channel is a hole: a depth camera's colour image
+/// is black where it has no colour for a pixel (a Kinect's holes, often in strips beside
+/// edges), exactly 0 in every channel as registered frames leave them; 2 allows for a
+/// codec's rounding.
+pub(crate) const HOLE_LEVEL: u8 = 2;
+
+/// Whether `rgb` is a hole (see [`HOLE_LEVEL`]).
+#[inline(always)]
+pub(crate) fn is_hole(rgb: [u8; 3]) -> bool {
+    rgb.iter().all(|&c| c <= HOLE_LEVEL)
+}
+
+/// Whether the model counts holes as no data: the kernel (RGB) model, where black is a
+/// colour like any other. The histogram models leave holes out by the HSV mask's value
+/// floor; the gray model keeps them (a black dot on a white target is what it tracks, and
+/// a real camera's black reaches 0).
+pub(crate) fn holes_are_no_data(model: &AppearanceModel) -> bool {
+    matches!(model, AppearanceModel::Rgb { .. })
+}
+
+/// Share of the kernel model's top bin (of `q`) from which a bin weighs fully in its
+/// back-projection (times the share of its pixels about the window that lie inside it),
+/// below it in proportion. A shaded marker spreads over many RGB bins, its lit side in the
+/// fullest ones; weights in proportion to `q` pulled a blob's centroid 2-3 px toward the
+/// light (the third generator's shaded spheres), where every colour of the marker weighing
+/// alike centres it as a hue does. Chosen on the third generator's tuning seeds 1-39
+/// (`docs/validation.md`: 1/8, 1/16 and 1/32 within 0.1 point of each other, 1/2 a point
+/// and a half lower, every bin of the window alike 20 points lower).
+pub(crate) const KERNEL_FULL_WEIGHT_SHARE: f64 = 1.0 / 16.0;
+
 /// Background weighting in the spirit of Comaniciu, Ramesh, Meer (2003), section 6.2: each
 /// bin `h_u` becomes `h_u² / (h_u + o_u)`, where `o_u` counts the bin in a ring one window
 /// wide around the window (eight times the window's area), so colours common around the
@@ -217,6 +289,24 @@ fn weigh_by_background(
     model: &AppearanceModel,
     mask: &ChannelRange,
 ) {
+    let background = ring_counts(hist, frame, window, model, mask);
+    for (v, &o) in hist.values_mut().iter_mut().zip(&background) {
+        let h = f64::from(*v);
+        if h > 0.0 {
+            *v = (h * h / (h + o)) as f32;
+        }
+    }
+}
+
+/// Per bin of `hist`, the pixels of the ring one window wide around `window` (inside the
+/// frame) that fall in it.
+fn ring_counts(
+    hist: &Histogram,
+    frame: &RgbImage,
+    window: PixelRect,
+    model: &AppearanceModel,
+    mask: &ChannelRange,
+) -> Vec<f64> {
     let ring = window
         .grown(window.width, window.height)
         .intersect(&PixelRect::image(frame.width(), frame.height()));
@@ -236,12 +326,7 @@ fn weigh_by_background(
             }
         }
     }
-    for (v, &o) in hist.values_mut().iter_mut().zip(&background) {
-        let h = f64::from(*v);
-        if h > 0.0 {
-            *v = (h * h / (h + o)) as f32;
-        }
-    }
+    background
 }
 
 /// Squared normalised distance of pixel `(i, j)` of a `w` x `h` window from its centre, in

@@ -8,7 +8,7 @@ use nalgebra::Point2;
 use crate::histogram::Histogram;
 use crate::hsv::{ChannelRange, rgb_to_gray, rgb_to_hsv};
 use crate::meanshift::{Moments, TermCriteria, moments_from_f64_sums};
-use crate::model::{AppearanceModel, MarkerModel};
+use crate::model::{AppearanceModel, MarkerModel, holes_are_no_data, is_hole};
 use crate::rect::PixelRect;
 use crate::tracker::DepthView;
 
@@ -416,17 +416,34 @@ fn weigh_row<const HSV: bool>(
         values,
         bins,
         one_channel,
+        holes,
     } = lookup;
     let planes = feature_planes::<HSV>(row, features, feature_rows);
     let one = one_channel.as_deref().map(|o| (o, &o.weight));
     look_up_row(out, planes, 0.0, one, values, tables);
     let raised =
         background.is_some_and(|(s, background, lifts)| s.raise_row(out, row, background, lifts));
-    if let Some(out) = bins_out {
+    let mut bins_out = bins_out;
+    if let Some(out) = bins_out.as_deref_mut() {
         let one = one_channel.as_deref().map(|o| (o, &o.bin));
         look_up_row(out, planes, NO_BIN, one, bins, tables);
     }
+    if *holes {
+        no_data_in_holes(row, out, bins_out);
+    }
     raised
+}
+
+/// Weight 0 and no bin for every hole (see [`is_hole`]) of a row of RGB pixels.
+fn no_data_in_holes(row: &[u8], weights: &mut [f32], mut bins: Option<&mut [u32]>) {
+    for (k, (p, w)) in row.chunks_exact(3).zip(weights.iter_mut()).enumerate() {
+        if is_hole([p[0], p[1], p[2]]) {
+            *w = 0.0;
+            if let Some(b) = bins.as_deref_mut().and_then(|b| b.get_mut(k)) {
+                *b = NO_BIN;
+            }
+        }
+    }
 }
 
 /// Mark in `rows` the rows of `scales` (`width` entries a row, see [`Lifts`]) that hold a
@@ -677,6 +694,9 @@ pub(crate) struct Lookup {
     /// The same lookup when only the first channel selects a bin and the other two only
     /// pass or reject (a hue histogram under a saturation/value mask, a gray histogram).
     one_channel: Option<Box<OneChannel>>,
+    /// Holes are no data (weight 0, no bin) whatever the tables say (see
+    /// `holes_are_no_data`).
+    holes: bool,
 }
 
 /// A [`Lookup`] whose second and third channels only pass or reject, each over one interval
@@ -735,6 +755,7 @@ impl Default for Lookup {
             values: Vec::new(),
             bins: Vec::new(),
             one_channel: None,
+            holes: false,
         }
     }
 }
@@ -753,7 +774,30 @@ impl Lookup {
         );
         let mut lookup = Self::default();
         lookup.build(model, hsv.then_some(mask));
+        lookup.holes = holes_are_no_data(appearance);
         lookup
+    }
+
+    /// The per-channel tables as they are now (see [`Lookup::rescale`]).
+    pub(crate) fn tables(&self) -> [[u32; 256]; 3] {
+        *self.tables
+    }
+
+    /// Read channel `c` of every pixel as its level times `gains[c]` (rounded, at most 255)
+    /// through `learnt`, the tables as built: a frame whose light changed by `1 / gains`
+    /// per channel is weighed as the first frame's light would have shown it. For lookups
+    /// whose every channel selects a bin (the kernel model's); a one-channel form is left
+    /// as it is.
+    pub(crate) fn rescale(&mut self, learnt: &[[u32; 256]; 3], gains: [f32; 3]) {
+        if self.one_channel.is_some() {
+            return;
+        }
+        for ((table, learnt), gain) in self.tables.iter_mut().zip(learnt).zip(gains) {
+            for (v, entry) in table.iter_mut().enumerate() {
+                let scaled = ((v as f32 * gain).round() as usize).min(255);
+                *entry = learnt[scaled];
+            }
+        }
     }
 
     fn build(&mut self, model: &MarkerModel, mask: Option<&ChannelRange>) {
@@ -1262,52 +1306,65 @@ impl Region {
     ) -> Mode {
         match model {
             MarkerModel::Projected { .. } => {
-                let max_iter = criteria.max_iterations.unwrap_or(100).max(1);
-                let eps = criteria.epsilon_px.unwrap_or(1.0).max(0.0);
-                let mut window = PixelRect::centered_at(start, size.0, size.1);
-                let mut center = start;
-                // The sums of the window the loop ended on, when it ended without moving it.
-                let mut last = None;
-                for _ in 0..max_iter {
-                    let s = self.sums(window);
-                    if s[0] <= 0.0 {
-                        last = Some(s);
-                        break;
-                    }
-                    let c = Point2::new(s[1] / s[0], s[2] / s[0]);
-                    let next = PixelRect::centered_at(c, size.0, size.1);
-                    let moved = (c - center).norm();
-                    center = c;
-                    if next == window {
-                        last = Some(s);
-                        break;
-                    }
-                    window = next;
-                    if moved < eps {
-                        break;
-                    }
-                }
-                let s = last.unwrap_or_else(|| self.sums(window));
-                if s[0] > 0.0 {
-                    center = Point2::new(s[1] / s[0], s[2] / s[0]);
-                }
-                let moments = self
-                    .moments_wanted
-                    .then(|| {
-                        let grown = window.grown(ADAPTIVE_BORDER_PX, ADAPTIVE_BORDER_PX);
-                        let g = self.sums(grown);
-                        // Central moments do not depend on the origin of the coordinates.
-                        (g[0] > 0.0).then(|| moments_from_f64_sums(g))
-                    })
-                    .flatten();
-                Mode {
-                    center,
-                    window,
-                    confidence: (s[0] / reference_mass.max(1.0)).min(1.0),
-                    moments,
-                }
+                self.weights_locate(criteria, reference_mass, start, size)
             }
             MarkerModel::Kernel { q, .. } => self.kernel_locate(q, start, size),
+        }
+    }
+
+    /// OpenCV's mean-shift over the region's weights (the histogram models' `locate`; for
+    /// the kernel model, mean-shift over its back-projection instead of the Bhattacharyya
+    /// coefficient), then the weighted centroid and the confidence of the converged window.
+    pub(crate) fn weights_locate(
+        &mut self,
+        criteria: &TermCriteria,
+        reference_mass: f64,
+        start: Point2<f64>,
+        size: (i32, i32),
+    ) -> Mode {
+        let max_iter = criteria.max_iterations.unwrap_or(100).max(1);
+        let eps = criteria.epsilon_px.unwrap_or(1.0).max(0.0);
+        let mut window = PixelRect::centered_at(start, size.0, size.1);
+        let mut center = start;
+        // The sums of the window the loop ended on, when it ended without moving it.
+        let mut last = None;
+        for _ in 0..max_iter {
+            let s = self.sums(window);
+            if s[0] <= 0.0 {
+                last = Some(s);
+                break;
+            }
+            let c = Point2::new(s[1] / s[0], s[2] / s[0]);
+            let next = PixelRect::centered_at(c, size.0, size.1);
+            let moved = (c - center).norm();
+            center = c;
+            if next == window {
+                last = Some(s);
+                break;
+            }
+            window = next;
+            if moved < eps {
+                break;
+            }
+        }
+        let s = last.unwrap_or_else(|| self.sums(window));
+        if s[0] > 0.0 {
+            center = Point2::new(s[1] / s[0], s[2] / s[0]);
+        }
+        let moments = self
+            .moments_wanted
+            .then(|| {
+                let grown = window.grown(ADAPTIVE_BORDER_PX, ADAPTIVE_BORDER_PX);
+                let g = self.sums(grown);
+                // Central moments do not depend on the origin of the coordinates.
+                (g[0] > 0.0).then(|| moments_from_f64_sums(g))
+            })
+            .flatten();
+        Mode {
+            center,
+            window,
+            confidence: (s[0] / reference_mass.max(1.0)).min(1.0),
+            moments,
         }
     }
 
@@ -1862,6 +1919,70 @@ mod tests {
             assert_eq!(a.weights, b.weights, "{appearance:?}");
             let zero = a.weights.iter().filter(|&&w| w == 0.0).count();
             assert!(zero > 0 && zero < a.weights.len(), "{appearance:?}: {zero}");
+        }
+    }
+
+    /// The kernel model's lookup, rescaled by the light's change per channel, weighs a frame
+    /// under a dimmer, bluer light as the first (to the rounding of one level), where the
+    /// lookup as learnt puts the marker in other bins; holes stay no data either way.
+    #[test]
+    fn a_rescaled_lookup_weighs_a_frame_under_another_light_as_the_first() {
+        let disc = |x: u32, y: u32| (x as i32 - 16).pow(2) + (y as i32 - 12).pow(2) <= 36;
+        let frame = RgbImage::from_fn(32, 24, |x, y| {
+            image::Rgb(match (disc(x, y), x == 3) {
+                (_, true) => [0, 0, 0],
+                (true, _) => [200, 40 + (x % 3) as u8 * 20, 60],
+                (false, _) => [90, 140, 200],
+            })
+        });
+        let light = [0.7f32, 0.8, 1.1];
+        let dimmed = RgbImage::from_fn(32, 24, |x, y| {
+            let p = frame.get_pixel(x, y).0;
+            image::Rgb([0, 1, 2].map(|c| (f32::from(p[c]) * light[c]).round() as u8))
+        });
+        let appearance = AppearanceModel::Rgb { bins: 16 };
+        let mask = ChannelRange {
+            lower: [0, 0, 0],
+            upper: [255, 255, 255],
+        };
+        let window = PixelRect::new(9, 5, 15, 15);
+        let model =
+            MarkerModel::learn("m", &frame, window, &appearance, &mask, true).expect("learns");
+        let filter = PixelFilter {
+            depth: None,
+            masked: &[],
+            paler: &[],
+            streak: None,
+        };
+        let rect = PixelRect::new(0, 0, 32, 24);
+        let mut lookup = Lookup::new(&appearance, &model, &mask);
+        let learnt = lookup.tables();
+        let weigh = |lookup: &Lookup, image: &RgbImage| {
+            let mut r = Region::default();
+            r.fill(&appearance, &model, lookup, image, rect, &filter, None);
+            (r.weights, r.bins)
+        };
+        let (first, first_bins) = weigh(&lookup, &frame);
+        let on_disc = |w: &[f32]| {
+            (0..w.len())
+                .filter(|&k| disc((k % 32) as u32, (k / 32) as u32) && w[k] > 0.0)
+                .count()
+        };
+        assert!(on_disc(&first) > 100, "{}", on_disc(&first));
+        let (unscaled, _) = weigh(&lookup, &dimmed);
+        assert!(
+            on_disc(&unscaled) < on_disc(&first) / 4,
+            "{}",
+            on_disc(&unscaled)
+        );
+        lookup.rescale(&learnt, light.map(|g| 1.0 / g));
+        let (scaled, scaled_bins) = weigh(&lookup, &dimmed);
+        assert_eq!(scaled, first);
+        assert_eq!(scaled_bins, first_bins);
+        // The column of holes: no weight, no bin.
+        for y in 0..24 {
+            assert_eq!(scaled[y * 32 + 3], 0.0);
+            assert_eq!(scaled_bins[y * 32 + 3], NO_BIN);
         }
     }
 

@@ -127,13 +127,23 @@ impl Tracker {
         if let Some(share) = rim_hue_share(frame, center, state.reference.width_px, colours) {
             state.hue_share = share;
         }
-        let mode = self.region.locate(
-            &state.model,
-            &config.criteria,
-            state.reference.mass,
-            center,
-            state.size,
-        );
+        let mode = if config.recovery {
+            // Where mean-shift over the weights blobs are measured on puts the marker, for
+            // every model: the kernel model's Bhattacharyya mean-shift, on a target histogram
+            // weighed against the background, runs off toward the window's rarest colours
+            // (a white target's black dot on a white wall: 12 px on the real vibration
+            // frames), which a measurement never does.
+            self.region
+                .weights_locate(&config.criteria, state.reference.mass, center, state.size)
+        } else {
+            self.region.locate(
+                &state.model,
+                &config.criteria,
+                state.reference.mass,
+                center,
+                state.size,
+            )
+        };
         let gray = matches!(config.model, AppearanceModel::Gray { .. });
         let measured = if config.recovery && gray {
             // A black-and-white target is located by its own window from here on; centre the

@@ -65,7 +65,7 @@ use crate::error::{Result, TrackError};
 use crate::hsv::ChannelRange;
 use crate::kalman::Kalman;
 use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
-use crate::model::{AppearanceModel, MarkerModel, marker_mask};
+use crate::model::{AppearanceModel, HOLE_LEVEL, MarkerModel, is_hole, marker_mask};
 use crate::rect::PixelRect;
 use crate::region::{
     Lookup, Mode, PixelFilter, Region, STREAK_MIN_CONTRAST, STREAK_MIN_HUE_SHARE, STREAK_MIN_SHADE,
@@ -80,6 +80,7 @@ mod config;
 mod frame;
 mod init;
 mod joint;
+mod light;
 mod passes;
 mod previous;
 mod state;
@@ -91,6 +92,7 @@ mod track;
 use blobs::*;
 pub use config::{MotionModel, TrackerConfig, WindowMode};
 use joint::*;
+use light::LightProbe;
 use passes::{Again, Flag, Went};
 use previous::PreviousFrame;
 use state::*;
@@ -356,8 +358,6 @@ const STREAK_MIN_SPEED_WIDTHS: f64 = 0.25;
 /// marker-sized disc's box reaches at most 1.41 widths along any direction (a diagonal); a
 /// marker that moves a width during the exposure draws a streak two widths long.
 const STREAK_MIN_LENGTH_WIDTHS: f64 = 2.0;
-/// A pixel no brighter than this in every channel is a hole (no data).
-const HOLE_LEVEL: u8 = 2;
 /// Share of holes around a marker above which its blob bridges 2-pixel gaps.
 const HOLES_SPARSE: f64 = 0.06;
 /// Share of holes above which it bridges 3-pixel gaps (a splatted projection image).
@@ -477,8 +477,11 @@ struct Distractor {
 struct MarkerState {
     id: String,
     model: MarkerModel,
-    /// The model and the mask as per-pixel table lookups (built once).
+    /// The model and the mask as per-pixel table lookups (built once; the kernel model's
+    /// rescaled to each frame's light, see [`LightProbe`]).
     lookup: Lookup,
+    /// The kernel model's lookup tables as learnt, when they follow the light.
+    learnt_tables: Option<Box<[[u32; 256]; 3]>>,
     init_size: (i32, i32),
     size: (i32, i32),
     filter: Kalman,
@@ -607,6 +610,8 @@ pub struct Tracker {
     previous: Option<PreviousFrame>,
     /// Per pair of markers (row-major `n x n`), how alike they have moved.
     coherence: Vec<Coherence>,
+    /// The light's change since the first frame (the kernel model's markers only).
+    light: Option<LightProbe>,
 }
 
 /// How alike marker `a` has moved with marker `b` (entry `a n + b`): running means of the
@@ -716,6 +721,7 @@ impl Tracker {
             patch: TemplateScratch::default(),
             previous: None,
             coherence: vec![Coherence::default(); markers.len() * markers.len()],
+            light: None,
         };
         tracker.check_depth(depth.as_ref())?;
         for (k, init) in markers.iter().enumerate() {
@@ -741,6 +747,12 @@ impl Tracker {
                     .map(|m| m.window.grown(m.window.width, m.window.height))
                     .collect();
                 tracker.previous = Some(PreviousFrame::first(first_frame, &away));
+            }
+            if matches!(tracker.config.model, AppearanceModel::Rgb { .. }) {
+                tracker.light = Some(LightProbe::of(first_frame));
+                for m in &mut tracker.markers {
+                    m.learnt_tables = Some(Box::new(m.lookup.tables()));
+                }
             }
         }
         Ok(tracker)
@@ -829,6 +841,14 @@ impl Tracker {
         let n = self.markers.len();
         let (width, height) = (self.width, self.height);
         let frame_index = self.frames() as u64;
+        if let Some(light) = &self.light {
+            let gains = light.gains(frame);
+            for m in &mut self.markers {
+                if let Some(learnt) = &m.learnt_tables {
+                    m.lookup.rescale(learnt, gains);
+                }
+            }
+        }
         // The camera's own shift moves every marker with the scene.
         let shift = match self.previous.as_mut() {
             Some(p) => {

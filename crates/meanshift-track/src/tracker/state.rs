@@ -13,6 +13,7 @@ impl MarkerState {
             id,
             model,
             lookup,
+            learnt_tables: None,
             init_size: (w.width, w.height),
             size: (w.width, w.height),
             filter: Kalman::new(center, MEASUREMENT_PX, 0.1 * side),

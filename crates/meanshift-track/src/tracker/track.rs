@@ -62,7 +62,9 @@ pub struct Observation {
     /// colour evidence at the measured place (the mean weight of its blob's pixels relative
     /// to the marker's own on the first frame, capped at 1), times how well the blob's width
     /// matches the marker's and how much of the marker's area it holds. For the kernel (RGB)
-    /// model, the Bhattacharyya coefficient instead of the weight share. 1 for user-set
+    /// model, the greater of the Bhattacharyya coefficient and the weight share (a blurred
+    /// marker's streak is weighed as the marker but its blended colours fill other bins of
+    /// its histogram). 1 for user-set
     /// centres; 0 when nothing was measured (coasting `predicted`, `lost`); a `predicted`
     /// frame with a confidence was measured under 0.6 (see [`TrackStatus::Predicted`]).
     ///
