@@ -10,7 +10,10 @@
 //! `{"frames": N, "markers": [{"id", "centers": [[x, y] | null, ...], "status": [...],
 //! "confidence": [...]}], "timing": {"decode_s", "track_s"}}`, one entry per frame; `track_s`
 //! covers tracking only. A summary per marker goes to stderr: frames tracked, recovered,
-//! predicted and lost, and the longest loss.
+//! predicted and lost, and the longest loss. With a colour model (hue, hs, rgb), a marker
+//! whose window has little colour (`meanshift_track::window_saturation` under the colour
+//! mask's floor: a black-and-white target) gets a warning there first, pointing to
+//! `--model gray`.
 //!
 //! With no arguments it renders a synthetic pull-and-release sequence with kinect-io's `synth`
 //! (the demo tree, its red markers swinging), tracks it, and prints the error against the
@@ -27,6 +30,7 @@ use treemocap::kinect_io::synth::{self, SynthConfig};
 use treemocap::meanshift_track::synthetic::score;
 use treemocap::meanshift_track::{
     AppearanceModel, MarkerInit, PixelRect, Track, Tracker, TrackerConfig, WindowMode,
+    window_saturation,
 };
 use treemocap::mocap_pipeline::MarkersFile;
 use treemocap::nalgebra::{Point2, Vector3};
@@ -221,6 +225,20 @@ fn track_folder(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             ..TrackerConfig::for_model(args.model)
         }
     };
+    let floor = config.hsv_mask.lower[1];
+    let colour = !matches!(config.model, AppearanceModel::Gray { .. });
+    // A colour model on a target without colour runs badly or not at all: say so first.
+    for init in inits.iter().filter(|_| colour) {
+        if let Some(s) = window_saturation(&first, init.window).filter(|&s| s < floor) {
+            eprintln!(
+                "warning: marker {}'s window has little colour (median saturation {s} of 255, \
+                 under the colour mask's {floor}); the {} model tells it from gray \
+                 surroundings poorly: --model gray is for black-and-white targets",
+                init.id,
+                args.model.name()
+            );
+        }
+    }
     let mut tracker = Tracker::new(config, &first, None, &inits)
         .map_err(|e| format!("{}: {e}", paths[0].display()))?;
     track_s += t.elapsed().as_secs_f64();

@@ -259,3 +259,72 @@ fn reconstruct_tree_sets_leaves_aside_and_writes_them() {
     assert_eq!(usage.status.code(), Some(2));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `track_markers` with a colour model warns about a window without colour (a
+/// black-and-white target, for which `--model gray` is meant), and not about a coloured
+/// marker or under the gray model.
+#[test]
+fn track_markers_warns_of_a_colour_model_on_a_target_without_colour() {
+    let Some(track) = program("track_markers") else {
+        eprintln!("skipped: the example programs are not built (run `cargo test --workspace`)");
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("treemocap-colourless-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    for k in 0..3u32 {
+        let frame = treemocap::image::RgbImage::from_fn(96, 48, |x, y| {
+            let (dx, dy) = (x as i32 - 24 - k as i32, y as i32 - 24);
+            let (rx, ry) = (x as i32 - 70 - k as i32, y as i32 - 24);
+            treemocap::image::Rgb(if dx.abs() <= 7 && dy.abs() <= 7 {
+                if dx * dx + dy * dy <= 9 {
+                    [20, 20, 20]
+                } else {
+                    [235, 235, 230]
+                }
+            } else if rx * rx + ry * ry <= 36 {
+                [215, 25, 30]
+            } else {
+                [110, 115, 105]
+            })
+        });
+        frame.save(dir.join(format!("f{k:04}.png"))).unwrap();
+    }
+    let init = dir.join("init.json");
+    std::fs::write(
+        &init,
+        r#"[{"id": "white", "x": 14, "y": 14, "w": 21, "h": 21},
+            {"id": "red", "x": 62, "y": 16, "w": 17, "h": 17}]"#,
+    )
+    .unwrap();
+    let run = |model: &str| {
+        let out = Command::new(&track)
+            .arg(&dir)
+            .arg(&init)
+            .args(["--model", model, "--out"])
+            .arg(dir.join(format!("{model}.json")))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        (out.status.success(), stderr)
+    };
+    // The RGB model runs on the white target; the hue model cannot (none of its pixels
+    // passes the hue mask: an error), and the advice comes before it.
+    for (model, runs) in [("rgb", true), ("hue", false)] {
+        let (ok, stderr) = run(model);
+        assert_eq!(ok, runs, "{model}: {stderr}");
+        let warnings: Vec<&str> = stderr
+            .lines()
+            .filter(|l| l.starts_with("warning"))
+            .collect();
+        assert_eq!(warnings.len(), 1, "{model}: {stderr}");
+        assert!(
+            warnings[0].contains("marker white") && warnings[0].contains("--model gray"),
+            "{model}: {stderr}"
+        );
+        assert!(runs || stderr.contains("no usable pixels"), "{stderr}");
+    }
+    let (ok, stderr) = run("gray");
+    assert!(ok && !stderr.contains("warning"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

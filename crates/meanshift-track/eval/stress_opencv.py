@@ -17,6 +17,7 @@ and frame on the same frames, the HSV conversion excluded (the issue's yardstick
 
 Not run by CI. Needs opencv-python-headless and numpy. From the repository root:
     python3 crates/meanshift-track/eval/stress_opencv.py [--seeds 1000..1004] [--conditions a,b]
+        [--model hue|hs|rgb]
 """
 import argparse
 import json
@@ -115,6 +116,9 @@ def main():
     parser.add_argument("--seeds", default="1000..1004",
                         help="evaluation seeds, a..b (default 1000..1004; tuning seeds are 0..8)")
     parser.add_argument("--conditions", default=",".join(CONDITIONS))
+    parser.add_argument("--model", default="hue",
+                        help="our tracker's appearance model, track_markers --model (default hue;"
+                             " OpenCV's columns are the hue histogram's whatever it is)")
     args = parser.parse_args()
     a, b = (int(v) for v in args.seeds.split(".."))
     cv2.setNumThreads(1)
@@ -141,7 +145,8 @@ def main():
                 with open(os.path.join(tmp, "init.json")) as f:
                     inits = json.load(f)
                 out = os.path.join(tmp, "ours.json")
-                run([track, tmp, os.path.join(tmp, "init.json"), "--out", out])
+                run([track, tmp, os.path.join(tmp, "init.json"), "--out", out, "--model",
+                     args.model])
                 with open(out) as f:
                     ours = json.load(f)
                 truth, vis, fully = rec["truth"], rec["visibility"], rec["fully_visible"]

@@ -84,7 +84,7 @@ pub use hsv::{
 pub use meanshift::{
     CamShiftResult, MeanShiftResult, Moments, RotatedBox, TermCriteria, cam_shift, mean_shift,
 };
-pub use model::AppearanceModel;
+pub use model::{AppearanceModel, window_saturation};
 pub use rect::PixelRect;
 pub use tracker::{
     DepthView, MAX_REVISED_FRAMES, MarkerInit, MotionModel, Observation, Track, TrackStatus,

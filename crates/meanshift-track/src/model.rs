@@ -397,3 +397,81 @@ pub(crate) fn marker_mask(
         upper: mask.upper,
     }
 }
+
+/// The median saturation (HSV, 0..255) of the pixels of the middle of `window` (its
+/// inscribed ellipse shrunk by 1/sqrt(2), where a window drawn about a marker holds the
+/// marker) that lie inside `frame`, holes (see [`HOLE_LEVEL`]) left out; `None` when none
+/// is left. A colour model tells a
+/// marker from gray surroundings by its colour: a window whose median is under the HSV
+/// mask's saturation floor ([`crate::TrackerConfig::hsv_mask`], 60 by default) holds a
+/// black-and-white target, or one paled by the light, which the gray model is for (the real
+/// vibration frames' white targets: 21-43, against 160 and more for the third generator's
+/// coloured markers).
+///
+/// # Examples
+/// ```
+/// use meanshift_track::{PixelRect, window_saturation};
+/// let frame = image::RgbImage::from_fn(40, 40, |x, _| {
+///     image::Rgb(if x < 20 { [220, 30, 30] } else { [200, 200, 200] })
+/// });
+/// assert!(window_saturation(&frame, PixelRect::new(0, 0, 20, 40)).unwrap() > 200);
+/// assert_eq!(window_saturation(&frame, PixelRect::new(20, 0, 20, 40)), Some(0));
+/// ```
+pub fn window_saturation(frame: &RgbImage, window: PixelRect) -> Option<u8> {
+    let inside = window.intersect(&PixelRect::image(frame.width(), frame.height()));
+    let (w, h) = (window.width.max(1) as usize, window.height.max(1) as usize);
+    let mut saturations: Vec<u8> = Vec::with_capacity(inside.area() as usize);
+    for y in inside.y..inside.bottom() as i32 {
+        for x in inside.x..inside.right() as i32 {
+            let (i, j) = (f64::from(x - window.x), f64::from(y - window.y));
+            let p = frame.get_pixel(x as u32, y as u32).0;
+            if kernel_r2(i, j, w, h) < 0.5 && !is_hole(p) {
+                saturations.push(rgb_to_hsv(p)[1]);
+            }
+        }
+    }
+    if saturations.is_empty() {
+        return None;
+    }
+    let mid = saturations.len() / 2;
+    Some(*saturations.select_nth_unstable(mid).1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_window_s_saturation_leaves_out_holes_and_the_outside() {
+        let frame = RgbImage::from_fn(30, 20, |x, _| {
+            image::Rgb(match x {
+                0..10 => [0, 0, 0],
+                10..20 => [40, 200, 60],
+                _ => [128, 128, 128],
+            })
+        });
+        // Holes and the part outside the frame do not count: only the green remains.
+        let green = window_saturation(&frame, PixelRect::new(-5, -5, 30, 50));
+        assert_eq!(green, Some(rgb_to_hsv([40, 200, 60])[1]));
+        // The middle of the window decides: a red disc filling it, in a gray corner.
+        let disc = RgbImage::from_fn(20, 20, |x, y| {
+            let r2 = (x as i32 - 10).pow(2) + (y as i32 - 10).pow(2);
+            image::Rgb(if r2 <= 36 {
+                [215, 25, 30]
+            } else {
+                [110, 115, 105]
+            })
+        });
+        let red = window_saturation(&disc, PixelRect::new(2, 2, 17, 17));
+        assert_eq!(red, Some(rgb_to_hsv([215, 25, 30])[1]));
+        assert_eq!(
+            window_saturation(&frame, PixelRect::new(0, 0, 10, 20)),
+            None
+        );
+        assert_eq!(window_saturation(&frame, PixelRect::new(40, 0, 5, 5)), None);
+        assert_eq!(
+            window_saturation(&frame, PixelRect::new(20, 0, 10, 20)),
+            Some(0)
+        );
+    }
+}

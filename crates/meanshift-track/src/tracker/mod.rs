@@ -8,7 +8,9 @@
 //!    hidden behind another of its look) goes on at the acceleration of its last positions.
 //!    A shake of the camera (colour models: measured on edge points of the still scene,
 //!    `tracker::camera`) moves every prediction with the scene, and the frame before is read
-//!    where the shake moved it as the background of streaks.
+//!    where the shake moved it as the background of streaks. For the RGB kernel model, whose
+//!    bins move with the light, the frame is read through lookup tables rescaled by the
+//!    light's change per channel since the first frame (`tracker::light`).
 //! 2. **Quick pass**: mean-shift from the prediction over a region three windows wide; the
 //!    measurement is the weighted centroid of the blob the window converged on (for a marker
 //!    smeared by motion blur, the streak's centre; for a marker whose blob runs on along a
