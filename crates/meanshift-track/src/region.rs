@@ -591,8 +591,10 @@ pub(crate) struct Region {
     pub(crate) weights: Vec<f32>,
     /// Histogram bins (kernel model), [`NO_BIN`] where the pixel does not count.
     pub(crate) bins: Vec<u32>,
-    /// Candidate histogram scratch (kernel model).
+    /// Candidate histogram scratch (kernel model), all zero between kernel steps.
     p: Vec<f64>,
+    /// The bins of `p` a kernel step set.
+    touched: Vec<u32>,
     /// Pixel scratch of a kernel step.
     pixels: Vec<(i32, i32, u32, f64)>,
     /// One row of the region's features (HSV, RGB or gray) as three planes, converted a row
@@ -1419,8 +1421,14 @@ impl Region {
         }
         let hx = (w as f64 * 0.5).max(0.5);
         let hy = (h as f64 * 0.5).max(0.5);
-        self.p.clear();
-        self.p.resize(q.len(), 0.0);
+        // `p` is all zero between calls: only the bins this window touches are set, summed
+        // (in bin order, as over the whole histogram) and cleared again, not the 4,096 bins
+        // of a 16-per-channel RGB histogram at every step.
+        if self.p.len() != q.len() {
+            self.p.clear();
+            self.p.resize(q.len(), 0.0);
+        }
+        self.touched.clear();
         self.pixels.clear();
         let mut total = 0.0;
         for y in window.y..window.bottom() as i32 {
@@ -1435,7 +1443,11 @@ impl Region {
                 if r2 >= 1.0 {
                     continue;
                 }
-                self.p[bin as usize] += 1.0 - r2;
+                let p = &mut self.p[bin as usize];
+                if *p == 0.0 {
+                    self.touched.push(bin);
+                }
+                *p += 1.0 - r2;
                 total += 1.0 - r2;
                 self.pixels.push((x, y, bin, 1.0 - r2));
             }
@@ -1444,20 +1456,29 @@ impl Region {
             return (None, 0.0);
         }
         let mut rho = 0.0;
-        for (&p, &qv) in self.p.iter().zip(q) {
+        self.touched.sort_unstable();
+        for &bin in &self.touched {
+            let (p, qv) = (self.p[bin as usize], q[bin as usize]);
             if p > 0.0 && qv > 0.0 {
                 rho += (p / total * qv).sqrt();
             }
         }
+        // sqrt(q/p) times the kernel profile: the spatially weighted mean converges to the
+        // Bhattacharyya maximum on uniform blobs, where the flat mean stalls short of it.
+        // The bin's factor once per bin, kept in `p` until it is cleared below.
+        for &bin in &self.touched {
+            let p = self.p[bin as usize] / total;
+            self.p[bin as usize] = (q[bin as usize] / p).sqrt();
+        }
         let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
         for &(x, y, bin, k) in &self.pixels {
-            let p = self.p[bin as usize] / total;
-            // sqrt(q/p) times the kernel profile: the spatially weighted mean converges to the
-            // Bhattacharyya maximum on uniform blobs, where the flat mean stalls short of it.
-            let weight = (q[bin as usize] / p).sqrt() * k;
+            let weight = self.p[bin as usize] * k;
             sw += weight;
             sx += weight * f64::from(x);
             sy += weight * f64::from(y);
+        }
+        for &bin in &self.touched {
+            self.p[bin as usize] = 0.0;
         }
         if sw <= 0.0 {
             return (None, rho);
