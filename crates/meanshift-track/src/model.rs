@@ -400,9 +400,8 @@ pub(crate) fn marker_mask(
 
 /// The median saturation (HSV, 0..255) of the pixels of the middle of `window` (its
 /// inscribed ellipse shrunk by 1/sqrt(2), where a window drawn about a marker holds the
-/// marker) that lie inside `frame`, holes (see [`HOLE_LEVEL`]) left out; `None` when none
-/// is left. A colour model tells a
-/// marker from gray surroundings by its colour: a window whose median is under the HSV
+/// marker) that lie inside `frame`, holes (black: every channel at most 2, no data) left
+/// out; `None` when none is left. A colour model tells a marker from gray surroundings by its colour: a window whose median is under the HSV
 /// mask's saturation floor ([`crate::TrackerConfig::hsv_mask`], 60 by default) holds a
 /// black-and-white target, or one paled by the light, which the gray model is for (the real
 /// vibration frames' white targets: 21-43, against 160 and more for the third generator's
