@@ -21,6 +21,17 @@ const PROGRAMS: [&str; 8] = [
     "animate_tree",
 ];
 
+/// What a test prints when the example programs are not there to run.
+const SKIPPED: &str = "skipped: the example programs are not built (run `cargo test --workspace`)";
+
+/// An empty scratch directory of this test process, `treemocap-<tag>-<pid>` in the temp dir.
+fn fresh_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("treemocap-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 fn program(name: &str) -> Option<PathBuf> {
     let exe = std::env::current_exe().ok()?;
     let path = exe
@@ -34,12 +45,10 @@ fn program(name: &str) -> Option<PathBuf> {
 #[test]
 fn branch_angles_output_feeds_estimate_modal_by_column_name() {
     let (Some(angles), Some(modal)) = (program("branch_angles"), program("estimate_modal")) else {
-        eprintln!("skipped: the example programs are not built (run `cargo test --workspace`)");
+        eprintln!("{SKIPPED}");
         return;
     };
-    let dir = std::env::temp_dir().join(format!("treemocap-chain-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("chain");
     let tree = synthetic::two_level();
     std::fs::write(
         dir.join("trajectories.csv"),
@@ -131,12 +140,10 @@ fn reconstruct_tree_flags_a_cloud_in_a_cameras_frame_and_turns_it_with_up() {
     use treemocap::space_colonize::UpAxis;
     use treemocap::space_colonize::synthetic::SyntheticConfig;
     let Some(program) = program("reconstruct_tree") else {
-        eprintln!("skipped: the example programs are not built (run `cargo test --workspace`)");
+        eprintln!("{SKIPPED}");
         return;
     };
-    let dir = std::env::temp_dir().join(format!("treemocap-up-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("up");
     // A tree 3 m in front of a level camera 1.2 m above its base, in the camera's frame
     // (x right, y down, z forward), as capture_to_cloud writes a capture.
     let tree = SyntheticConfig {
@@ -201,12 +208,10 @@ fn reconstruct_tree_flags_a_cloud_in_a_cameras_frame_and_turns_it_with_up() {
 fn reconstruct_tree_sets_leaves_aside_and_writes_them() {
     use treemocap::space_colonize::synthetic::SyntheticConfig;
     let Some(program) = program("reconstruct_tree") else {
-        eprintln!("skipped: the example programs are not built (run `cargo test --workspace`)");
+        eprintln!("{SKIPPED}");
         return;
     };
-    let dir = std::env::temp_dir().join(format!("treemocap-leaves-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("leaves");
     let tree = SyntheticConfig {
         points: 8_000,
         leaf_points: 4_000,
@@ -266,12 +271,10 @@ fn reconstruct_tree_sets_leaves_aside_and_writes_them() {
 #[test]
 fn track_markers_warns_of_a_colour_model_on_a_target_without_colour() {
     let Some(track) = program("track_markers") else {
-        eprintln!("skipped: the example programs are not built (run `cargo test --workspace`)");
+        eprintln!("{SKIPPED}");
         return;
     };
-    let dir = std::env::temp_dir().join(format!("treemocap-colourless-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("colourless");
     for k in 0..3u32 {
         let frame = treemocap::image::RgbImage::from_fn(96, 48, |x, y| {
             let (dx, dy) = (x as i32 - 24 - k as i32, y as i32 - 24);

@@ -1894,6 +1894,16 @@ mod tests {
         }
     }
 
+    /// A filter that lets every pixel through and raises none to a streak weight.
+    fn no_filter() -> PixelFilter<'static> {
+        PixelFilter {
+            depth: None,
+            masked: &[],
+            paler: &[],
+            streak: None,
+        }
+    }
+
     /// The one-channel lookup (hue under a saturation/value mask, gray) weighs every pixel
     /// as the general three-table lookup does, and is used where it applies.
     #[test]
@@ -1908,12 +1918,7 @@ mod tests {
             lower: [0, 40, 30],
             upper: [180, 250, 240],
         };
-        let filter = PixelFilter {
-            depth: None,
-            masked: &[],
-            paler: &[],
-            streak: None,
-        };
+        let filter = no_filter();
         let rect = PixelRect::new(0, 0, 64, 48);
         for (appearance, one) in [
             (AppearanceModel::Hue { bins: 16 }, true),
@@ -1969,12 +1974,7 @@ mod tests {
         let window = PixelRect::new(9, 5, 15, 15);
         let model =
             MarkerModel::learn("m", &frame, window, &appearance, &mask, true).expect("learns");
-        let filter = PixelFilter {
-            depth: None,
-            masked: &[],
-            paler: &[],
-            streak: None,
-        };
+        let filter = no_filter();
         let rect = PixelRect::new(0, 0, 32, 24);
         let mut lookup = Lookup::new(&appearance, &model, &mask);
         let learnt = lookup.tables();

@@ -300,7 +300,7 @@ pub(super) fn hole_gap(frame: &RgbImage, window: PixelRect) -> usize {
         for x in around.x..around.right() as i32 {
             let p = frame.get_pixel(x as u32, y as u32).0;
             all += 1;
-            if p.iter().all(|&c| c <= HOLE_LEVEL) {
+            if is_hole(p) {
                 holes += 1;
             }
         }

@@ -67,7 +67,7 @@ use crate::error::{Result, TrackError};
 use crate::hsv::ChannelRange;
 use crate::kalman::Kalman;
 use crate::meanshift::{Axes, Moments, TermCriteria, moments_from_f64_sums};
-use crate::model::{AppearanceModel, HOLE_LEVEL, MarkerModel, is_hole, marker_mask};
+use crate::model::{AppearanceModel, MarkerModel, is_hole, marker_mask};
 use crate::rect::PixelRect;
 use crate::region::{
     Lookup, Mode, PixelFilter, Region, STREAK_MIN_CONTRAST, STREAK_MIN_HUE_SHARE, STREAK_MIN_SHADE,
