@@ -137,30 +137,40 @@ pub(super) fn trail(m: &MarkerState, frame: &RgbImage) -> Option<Trail> {
     if inside.is_empty() {
         return None;
     }
-    let mut channels: [Vec<u8>; 3] = Default::default();
+    let raw = frame.as_raw();
+    let stride = 3 * frame.width() as usize;
+    let mut pixels: Vec<[u8; 3]> = Vec::new();
+    // Per channel, how many samples hold each level: the median from the counts.
+    let mut counts = [[0u32; 256]; 3];
     for y in (inside.y..inside.bottom() as i32).step_by(TRAIL_RING_STEP_PX) {
+        let row = &raw[y as usize * stride..(y as usize + 1) * stride];
         for x in (inside.x..inside.right() as i32).step_by(TRAIL_RING_STEP_PX) {
             if window.contains(x, y) {
                 continue;
             }
-            let p = frame.get_pixel(x as u32, y as u32).0;
-            for (c, v) in channels.iter_mut().zip(p) {
-                c.push(v);
+            let p = [
+                row[3 * x as usize],
+                row[3 * x as usize + 1],
+                row[3 * x as usize + 2],
+            ];
+            for (c, &v) in counts.iter_mut().zip(&p) {
+                c[usize::from(v)] += 1;
             }
+            pixels.push(p);
         }
     }
-    let n = channels[0].len();
+    let n = pixels.len();
     if n < TRAIL_MIN_RING_PX {
         return None;
     }
-    let mut sorted = channels.clone();
-    let around = sorted.each_mut().map(|c| *c.select_nth_unstable(n / 2).1);
+    let around = counts.map(|c| rank_level(&c, n / 2));
     // Only a plain surrounding (the sky, a wall) says what lay behind the marker: where it
     // sat on a limb, the limb uncovered as it leaves is no streak.
-    let near = (0..n)
-        .filter(|&k| {
+    let near = pixels
+        .iter()
+        .filter(|p| {
             (0..3)
-                .map(|c| (f32::from(channels[c][k]) - f32::from(around[c])).powi(2))
+                .map(|c| (f32::from(p[c]) - f32::from(around[c])).powi(2))
                 .sum::<f32>()
                 < STREAK_MIN_CONTRAST * STREAK_MIN_CONTRAST
         })
@@ -172,6 +182,19 @@ pub(super) fn trail(m: &MarkerState, frame: &RgbImage) -> Option<Trail> {
         rect: window,
         around,
     })
+}
+
+/// The level of rank `rank` (0 the least) among samples counted per level in `counts`
+/// (the level `select_nth_unstable(rank)` leaves there); 255 past the last sample.
+fn rank_level(counts: &[u32; 256], rank: usize) -> u8 {
+    let mut below = 0usize;
+    for (level, &c) in counts.iter().enumerate() {
+        below += c as usize;
+        if below > rank {
+            return level as u8;
+        }
+    }
+    u8::MAX
 }
 
 impl Tracker {
@@ -1052,6 +1075,24 @@ pub(super) fn window_depth(depth: &DepthView<'_>, window: PixelRect) -> Option<f
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_level_of_rank_from_counts_is_the_one_selection_leaves_there() {
+        let mut rng = crate::rng::Rng::new(17);
+        for n in [1usize, 2, 7, 12, 675] {
+            let mut values: Vec<u8> = (0..n).map(|_| rng.range([0.0, 256.0]) as u8).collect();
+            // Runs of one level, as a plain sky gives.
+            values.extend(std::iter::repeat_n(values[0], n / 3));
+            let mut counts = [0u32; 256];
+            values.iter().for_each(|&v| counts[usize::from(v)] += 1);
+            for rank in [0, values.len() / 2, values.len() - 1] {
+                let mut sorted = values.clone();
+                let selected = *sorted.select_nth_unstable(rank).1;
+                assert_eq!(rank_level(&counts, rank), selected, "n {n}, rank {rank}");
+            }
+        }
+        assert_eq!(rank_level(&[0; 256], 0), u8::MAX);
+    }
 
     #[test]
     fn a_trail_is_kept_where_the_marker_was_over_a_plain_surrounding_only() -> Result<()> {
