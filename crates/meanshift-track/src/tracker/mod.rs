@@ -473,6 +473,10 @@ struct Distractor {
     /// Its core saturation (8-bit levels), where it was measured (look-alikes of the first
     /// frame).
     saturation: Option<f64>,
+    /// Another marker's look-alike of the first frame, not this marker's own (see
+    /// `Tracker::share_look_alikes`): a measurement centred on it is refused, but its pixels
+    /// are not masked (this marker's own weights did not make it a blob).
+    shared: bool,
 }
 
 #[derive(Debug, Clone)]

@@ -271,7 +271,7 @@ impl MarkerState {
         }
         self.distractors
             .iter()
-            .filter(|d| d.seen >= 2 && (d.at - pred).norm() > half)
+            .filter(|d| d.seen >= 2 && !d.shared && (d.at - pred).norm() > half)
             // A paler one is kept out of the weights by its floor: its blob is not the pair.
             .filter(|d| self.paler_floor(d).is_none())
             .map(|d| d.at)
@@ -286,7 +286,7 @@ impl MarkerState {
         let (hw, hh) = (self.size.0 / 4, self.size.1 / 4);
         self.distractors
             .iter()
-            .filter(|d| d.seen >= 2 && d.bounds.intersect(&region).area() > 0)
+            .filter(|d| d.seen >= 2 && !d.shared && d.bounds.intersect(&region).area() > 0)
             .filter(|d| {
                 let b = d.bounds.grown(hw, hh);
                 !(pred.x >= f64::from(b.x)
@@ -312,7 +312,7 @@ impl MarkerState {
     ) -> Vec<(PixelRect, u8)> {
         self.distractors
             .iter()
-            .filter(|d| d.seen >= 2 && d.bounds.intersect(&region).area() > 0)
+            .filter(|d| d.seen >= 2 && !d.shared && d.bounds.intersect(&region).area() > 0)
             .filter(|d| !masked.contains(&d.bounds))
             .filter_map(|d| self.paler_floor(d).map(|floor| (d.bounds, floor)))
             .collect()
@@ -405,10 +405,11 @@ impl MarkerState {
             self.reach_px = self.reach_px.max((q.center - self.home).norm());
         }
         let side = window_px(self);
-        if self.misses >= STOP_AFTER_MISSES && innovation > side * side {
-            // Found again after frames of coasting, a window or more from where the coasting
-            // put it: that jump is not a velocity (it made a marker found again at the end of
-            // a swing fly off the frame), and where the swing is now in its cycle is unknown.
+        if self.searching() >= STOP_AFTER_MISSES && innovation > side * side {
+            // Found again after frames of coasting (missed, or followed only on weak
+            // measurements), a window or more from where the coasting put it: that jump is not
+            // a velocity (it made a marker found again at the end of a swing fly off the
+            // frame), and where the swing is now in its cycle is unknown.
             self.filter.stop(side);
         }
         if let MotionModel::ConstantVelocity {
@@ -578,6 +579,7 @@ pub(super) fn remember_distractor(
                     first_frame: frame,
                     static_frame: None,
                     saturation: None,
+                    shared: false,
                 };
             }
         }
@@ -597,6 +599,7 @@ pub(super) fn remember_distractor(
         first_frame: frame,
         static_frame: None,
         saturation: None,
+        shared: false,
     });
 }
 
