@@ -436,6 +436,13 @@ const BLOB_MAX_LENGTH: f64 = 6.0;
 const MAX_CANDIDATES: usize = 16;
 /// Share of the velocity kept per frame without a measurement: a swing turns back.
 const COAST_VELOCITY_DECAY: f64 = 0.8;
+/// A merged marker moving at most this many windows a frame coasts at its own speed, not
+/// slowed by [`COAST_VELOCITY_DECAY`]: two markers crossing pass each other at their own
+/// speeds, and one slowed down while hidden in the other's blob fell behind onto the other
+/// as they parted (crossing tuning seed 2). A faster one is slowed as a missed one is (a
+/// velocity taken from a jump ran away by 150 px in 5 frames on the third generator's
+/// tuning seed 5 without it).
+const MERGED_STEADY_WINDOWS: f64 = 0.5;
 /// Windows beyond the farthest a colour marker was tracked from its home within which it
 /// is taken to stay (see [`MarkerState::held_in_frame`]).
 const HOLD_REACH_WINDOWS: f64 = 1.0;

@@ -460,13 +460,14 @@ impl MarkerState {
         }
     }
 
-    /// No measurement this frame: coast, then lose.
     /// Not found, and merged with a marker of the same look: it coasts on its own motion
     /// (the two cross) and the frame does not count as a miss, so that it is neither given
     /// up while hidden in the other's blob nor looked for far away, and is taken up again
     /// as soon as it shows.
     pub(super) fn merged(&mut self, (width, height): (u32, u32)) -> Observation {
-        self.filter.velocity *= COAST_VELOCITY_DECAY;
+        if self.filter.velocity.norm() > MERGED_STEADY_WINDOWS * window_px(self) {
+            self.filter.velocity *= COAST_VELOCITY_DECAY;
+        }
         let pred = clamp_into(self.filter.position, width, height);
         self.last_status = TrackStatus::Predicted;
         Observation {
@@ -477,6 +478,7 @@ impl MarkerState {
         }
     }
 
+    /// No measurement this frame: coast, then lose.
     pub(super) fn missed(
         &mut self,
         config: &TrackerConfig,
@@ -672,13 +674,45 @@ mod tests {
         m.merged(size);
         let coasting = m.predicted(&config, size, 8).position;
         assert!((coasting - at(8)).norm() < 0.5, "{coasting} vs {}", at(8));
-        // What the filter's velocity, decayed while coasting, would give: half a window behind.
+        // What the filter's velocity, decayed as a missed marker's is, would give: half a
+        // window behind (a merged marker this slow keeps its velocity, so its filter is ahead
+        // of that).
+        let mut decayed = m.filter;
+        decayed.velocity *= COAST_VELOCITY_DECAY;
+        decayed.predict(m.acceleration_px);
+        assert!(
+            (decayed.position - at(8)).norm() > 4.0,
+            "{}",
+            decayed.position
+        );
+        // Found in the frame before, the filter predicts as it always has.
         let mut cv = m.filter;
         cv.predict(m.acceleration_px);
-        assert!((cv.position - at(8)).norm() > 4.0, "{}", cv.position);
-        // Found in the frame before, the filter predicts as it always has.
         m.last_status = TrackStatus::Tracked;
         assert_eq!(m.predicted(&config, size, 8).position, cv.position);
+        Ok(())
+    }
+
+    #[test]
+    fn a_merged_marker_keeps_a_crossing_speed_and_slows_from_a_faster_one() -> Result<()> {
+        let t = two_red_markers()?;
+        let size = (t.width, t.height);
+        let side = window_px(&t.markers[0]);
+        for (windows_per_frame, kept) in [(0.3, 1.0), (0.45, 1.0), (1.0, COAST_VELOCITY_DECAY)] {
+            let mut m = t.markers[0].clone();
+            let v = Vector2::new(windows_per_frame * side, 0.0);
+            m.filter.velocity = v;
+            let at = m.filter.position;
+            m.merged(size);
+            assert_eq!(
+                m.filter.velocity,
+                v * kept,
+                "{windows_per_frame} windows a frame"
+            );
+            // Merged is not missed: it stays where it was put, with no miss counted.
+            assert_eq!(m.filter.position, at);
+            assert_eq!(m.misses, 0);
+        }
         Ok(())
     }
 
