@@ -372,12 +372,10 @@ impl Tracker {
                     .all(|(p, side)| (p - c.center).norm() > 0.5 * side)
                 {
                     let side = window_px(m);
-                    remember_distractor(m, c.center, c.holds, side, 0);
-                    remember_distractor(m, c.center, c.holds, side, 0);
                     // How pale it is: in a box it is predicted on, the marker's paler
                     // look-alikes are kept out by a saturation floor (`paler_boxes`).
                     let saturation = core_saturation(frame, c.center, side);
-                    if let Some(d) = m.distractors.iter_mut().find(|d| d.at == c.center) {
+                    if let Some(d) = remember_static(m, c.center, c.holds) {
                         d.saturation = saturation;
                     }
                 }
@@ -392,48 +390,43 @@ impl Tracker {
     /// fell under the blob threshold on the first frame, took it for itself after a release
     /// and stayed on it for 40 frames: `docs/validation.md`).
     fn share_look_alikes(&mut self) {
-        let firsts: Vec<([f32; 3], Vec<Distractor>)> = self
-            .markers
-            .iter()
-            .map(|m| (m.core_colour, m.distractors.clone()))
-            .collect();
-        for (i, m) in self.markers.iter_mut().enumerate() {
-            if m.template.is_some() {
+        let n = self.markers.len();
+        for i in 0..n {
+            if self.markers[i].template.is_some() {
                 continue;
             }
-            let side = window_px(m);
-            for (k, (colour, theirs)) in firsts.iter().enumerate() {
-                let apart = (0..3)
-                    .map(|c| (colour[c] - m.core_colour[c]).powi(2))
-                    .sum::<f32>()
-                    .sqrt();
-                if k == i || apart > SHARED_LOOK_LEVELS {
-                    continue;
-                }
-                for d in theirs {
-                    let known = m
-                        .distractors
-                        .iter()
-                        .any(|o| (o.at - d.at).norm() < (DISTRACTOR_RADIUS * side).max(2.0));
-                    if known {
-                        continue;
-                    }
-                    remember_distractor(m, d.at, d.bounds, side, 0);
-                    remember_distractor(m, d.at, d.bounds, side, 0);
-                    if let Some(o) = m.distractors.iter_mut().find(|o| o.at == d.at) {
-                        o.shared = true;
-                    }
+            let theirs: Vec<(Point2<f64>, PixelRect)> = (0..n)
+                .filter(|&k| k != i && same_look(&self.markers[i], &self.markers[k]))
+                .flat_map(|k| self.markers[k].distractors.iter())
+                .filter(|d| !d.shared)
+                .map(|d| (d.at, d.bounds))
+                .collect();
+            let m = &mut self.markers[i];
+            let near = (DISTRACTOR_RADIUS * window_px(m)).max(2.0);
+            for (at, bounds) in theirs {
+                // One it knows already stays as its own.
+                if m.distractors.iter().all(|o| (o.at - at).norm() >= near)
+                    && let Some(d) = remember_static(m, at, bounds)
+                {
+                    d.shared = true;
                 }
             }
         }
     }
 }
 
-/// Core colours of two markers at most this far apart (RGB levels, Euclidean) are one look
-/// (see [`Tracker::share_look_alikes`]): the two reds of the combined condition's tuning
-/// seed 2 that the rule was written for are 26 apart (their centres read (226, 33, 49) and
-/// (237, 18, 31)).
-const SHARED_LOOK_LEVELS: f32 = 40.0;
+/// Remember a look-alike of the first frame at `at` as static from the start (seen twice);
+/// the entry kept, to be told more about it.
+fn remember_static(
+    m: &mut MarkerState,
+    at: Point2<f64>,
+    bounds: PixelRect,
+) -> Option<&mut Distractor> {
+    let side = window_px(m);
+    remember_distractor(m, at, bounds, side, 0);
+    remember_distractor(m, at, bounds, side, 0);
+    m.distractors.iter_mut().find(|d| d.at == at)
+}
 
 /// Weigh marker `m`'s look over the whole first `frame` into `region` (no previous frame,
 /// nothing masked), sparsely: the background floor and the first look-alikes need only the
