@@ -56,6 +56,9 @@ const SHIFT_LENGTH_LEVELS: f64 = 0.01;
 const GAIN_MIN_LEVEL: f32 = 60.0;
 /// Rate of the running mean of the points' distance on still frames.
 const STILL_RATE: f64 = 0.1;
+/// Shifts per axis of the search: every one from `-MAX_CAMERA_SHIFT_PX` to
+/// `MAX_CAMERA_SHIFT_PX`.
+const SHIFTS: usize = 2 * MAX_CAMERA_SHIFT_PX as usize + 1;
 
 /// Edge points of the still scene and what the camera saw at them in the last frame.
 #[derive(Debug, Clone, Default)]
@@ -156,9 +159,11 @@ impl CameraPoints {
             }
             let reach = MAX_CAMERA_SHIFT_PX;
             let mut best = (still, [0, 0]);
-            for dy in -reach..=reach {
-                for dx in -reach..=reach {
-                    let d = self.distance(frame, [dx, dy], gain)
+            let mut sums = [[0.0f32; SHIFTS]; SHIFTS];
+            self.all_distances(frame, gain, &mut sums);
+            for (dy, row) in (-reach..=reach).zip(&sums) {
+                for (dx, &sum) in (-reach..=reach).zip(row) {
+                    let d = f64::from(sum) / self.points.len() as f64
                         + SHIFT_LENGTH_LEVELS * f64::from(dx.abs() + dy.abs());
                     if d < best.0 {
                         best = (d, [dx, dy]);
@@ -203,6 +208,45 @@ impl CameraPoints {
             })
             .sum();
         f64::from(sum) / self.points.len() as f64
+    }
+
+    /// The summed capped distances of [`CameraPoints::distance`] for every shift up to
+    /// [`MAX_CAMERA_SHIFT_PX`] each way (`sums[dy + reach][dx + reach]`): per point and `dy`
+    /// the row of pixels all the `dx` read, scaled by `gain` and compared with the point's
+    /// last colour in one pass (which vectorises), then each shift's three channels summed.
+    /// The same sums, bit for bit, as one shift at a time: each shift's terms are the same
+    /// products and differences, added in the same order (point by point).
+    fn all_distances(&self, frame: &RgbImage, gain: f32, sums: &mut [[f32; SHIFTS]; SHIFTS]) {
+        let raw = frame.as_raw();
+        let stride = 3 * frame.width() as usize;
+        let reach = MAX_CAMERA_SHIFT_PX;
+        let mut differences = [0.0f32; 3 * SHIFTS];
+        let mut lasts = [0.0f32; 3 * SHIFTS];
+        sums.iter_mut().for_each(|row| row.fill(0.0));
+        for (&(x, y), last) in self.points.iter().zip(&self.last) {
+            for (l, c) in lasts
+                .chunks_exact_mut(3)
+                .flat_map(|l| l.iter_mut().zip(last))
+            {
+                *l = f32::from(*c);
+            }
+            for (row_sums, dy) in sums.iter_mut().zip(-reach..=reach) {
+                let (row, first) = ((y as i32 + dy) as usize, (x as i32 - reach) as usize);
+                let at = row * stride + 3 * first;
+                // Points lie MAX_CAMERA_SHIFT_PX + 1 inside the frame, which is the first
+                // frame's size: every row read is inside it.
+                let Some(pixels) = raw.get(at..at + 3 * SHIFTS) else {
+                    row_sums.iter_mut().for_each(|s| *s += POINT_DISTANCE_CAP);
+                    continue;
+                };
+                for ((d, &p), &l) in differences.iter_mut().zip(pixels).zip(&lasts) {
+                    *d = (gain * f32::from(p) - l).abs();
+                }
+                for (s, d) in row_sums.iter_mut().zip(differences.chunks_exact(3)) {
+                    *s += (d[0] + d[1] + d[2]).min(POINT_DISTANCE_CAP);
+                }
+            }
+        }
     }
 
     /// The factor that brings `frame`'s levels at the points to the last frame's (a flicker
@@ -291,6 +335,40 @@ mod tests {
         let next = (at.0 - 6, at.1 + 5);
         assert_eq!(points.shift_to(&dimmed(scene(3, next, 43), 0.85)), [-6, 5]);
         assert!(points.searches <= 6, "{}", points.searches);
+    }
+
+    /// The search's rows of sums are each shift's distance, to the bit.
+    #[test]
+    fn all_shifts_at_once_are_each_shift_alone() {
+        let first = scene(7, (0, 0), 1);
+        let mut points = CameraPoints::of(&first, &[]);
+        assert!(points.points.len() >= MIN_POINTS);
+        points.shift_to(&scene(7, (0, 0), 2));
+        let shaken = scene(7, (5, -3), 3);
+        let mut sums = [[0.0f32; SHIFTS]; SHIFTS];
+        for gain in [1.0, 0.87] {
+            points.all_distances(&shaken, gain, &mut sums);
+            let n = points.points.len() as f64;
+            let reach = MAX_CAMERA_SHIFT_PX;
+            for (dy, row) in (-reach..=reach).zip(&sums) {
+                for (dx, &sum) in (-reach..=reach).zip(row) {
+                    let alone = points.distance(&shaken, [dx, dy], gain);
+                    assert_eq!(f64::from(sum) / n, alone, "({dx}, {dy}) at gain {gain}");
+                }
+            }
+            // The shake is the nearest shift.
+            let best = (0..SHIFTS * SHIFTS).min_by(|&a, &b| {
+                sums[a / SHIFTS][a % SHIFTS].total_cmp(&sums[b / SHIFTS][b % SHIFTS])
+            });
+            let b = best.unwrap_or(0);
+            let found = [
+                b as i32 % SHIFTS as i32 - reach,
+                b as i32 / SHIFTS as i32 - reach,
+            ];
+            if gain == 1.0 {
+                assert_eq!(found, [5, -3]);
+            }
+        }
     }
 
     #[test]
