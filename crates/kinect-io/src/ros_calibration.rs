@@ -219,19 +219,36 @@ impl Calibration {
 mod tests {
     use super::*;
 
-    fn temp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("kinect-io-ros-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap_or(());
-        let path = dir.join(name);
-        std::fs::write(&path, bytes).unwrap_or(());
-        path
+    /// A scratch folder of one test, removed (with its files) when dropped.
+    struct Scratch(std::path::PathBuf);
+
+    impl Scratch {
+        fn new(test: &str) -> Self {
+            let dir =
+                std::env::temp_dir().join(format!("kinect-io-ros-{}-{test}", std::process::id()));
+            std::fs::create_dir_all(&dir).unwrap_or(());
+            Scratch(dir)
+        }
+
+        fn file(&self, name: &str, bytes: &[u8]) -> std::path::PathBuf {
+            let path = self.0.join(name);
+            std::fs::write(&path, bytes).unwrap_or(());
+            path
+        }
+    }
+
+    impl Drop for Scratch {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
     }
 
     const INFO: &str = "image_width: 1280\nimage_height: 720\ncamera_name: rgb\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: [614.3,   0.     , 639.1,   0.     , 614.2 , 361.4,\n           0.     ,   0.     ,   1.     ]\ndistortion_model: rational_polynomial\ndistortion_coefficients:\n  rows: 1\n  cols: 8\n  data: [0.37, -2.45, 0.00004, -0.0002, 1.41, 0.25, -2.27, 1.34]\n";
 
     #[test]
     fn camera_info_is_read_with_its_rational_distortion() -> Result<()> {
-        let c = read_ros_camera_info(&temp("info.yaml", INFO.as_bytes()))?;
+        let scratch = Scratch::new("info");
+        let c = read_ros_camera_info(&scratch.file("info.yaml", INFO.as_bytes()))?;
         assert_eq!((c.width, c.height), (1280, 720));
         assert_eq!((c.fx, c.fy, c.cx, c.cy), (614.3, 614.2, 639.1, 361.4));
         assert_eq!(c.distortion.to_opencv()[..2], [0.37, -2.45]);
@@ -246,7 +263,7 @@ mod tests {
             ("word.yaml", INFO.replace("639.1", "x")),
             ("nosize.yaml", INFO.replace("image_width: 1280\n", "")),
         ] {
-            let path = temp(name, text.as_bytes());
+            let path = scratch.file(name, text.as_bytes());
             match read_ros_camera_info(&path) {
                 Err(KinectError::Calibration { .. }) => {}
                 other => panic!("{name}: {other:?}"),
@@ -272,12 +289,13 @@ mod tests {
 
     #[test]
     fn npy_transform_is_read_in_either_order_and_checked() -> Result<()> {
+        let scratch = Scratch::new("npy");
         // A rotation of 90° about z and a translation of (0.1, -0.2, 0.3) m.
         let c_order = [
             0.0, -1.0, 0.0, 0.1, 1.0, 0.0, 0.0, -0.2, 0.0, 0.0, 1.0, 0.3, 0.0, 0.0, 0.0, 1.0,
         ];
         let header = "{'descr': '<f8', 'fortran_order': False, 'shape': (4, 4), }";
-        let e = read_npy_transform(&temp("c.npy", &npy(&c_order, header)))?;
+        let e = read_npy_transform(&scratch.file("c.npy", &npy(&c_order, header)))?;
         assert_eq!(
             e.rotation,
             [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
@@ -291,7 +309,7 @@ mod tests {
         }
         let header_f = "{'descr': '<f8', 'fortran_order': True, 'shape': (4, 4), }";
         assert_eq!(
-            read_npy_transform(&temp("f.npy", &npy(&f_order, header_f)))?,
+            read_npy_transform(&scratch.file("f.npy", &npy(&f_order, header_f)))?,
             e
         );
         let mut scaled = c_order;
@@ -307,7 +325,7 @@ mod tests {
             ("text.npy", b"0 1 0\n".to_vec()),
         ];
         for (name, bytes) in cases {
-            match read_npy_transform(&temp(name, &bytes)) {
+            match read_npy_transform(&scratch.file(name, &bytes)) {
                 Err(KinectError::Format { .. } | KinectError::Calibration { .. }) => {}
                 other => panic!("{name}: {other:?}"),
             }
