@@ -44,6 +44,7 @@ impl Tracker {
             let familiar =
                 !jumped || !m.context_informative() || q.context.is_none_or(|v| m.familiar(v));
             let accept = m.misses == 0
+                && !m.held_by_still_weak()
                 && !self.far_beyond_reach(i, c)
                 && q.measured.confidence >= self.config.min_confidence
                 && m.typical(q.measured.confidence)
@@ -415,8 +416,16 @@ impl Tracker {
                         // or a blob the quick pass's region cut): reported as an estimate.
                         o.status = TrackStatus::Predicted;
                         m.weak_run += 1;
+                        let near = WEAK_STILL_WINDOWS * window_px(m);
+                        m.weak_place = Some(match m.weak_place {
+                            Some((at, still)) if (q.center - at).norm() <= near => {
+                                (q.center, still + 1)
+                            }
+                            _ => (q.center, 1),
+                        });
                     } else {
                         m.weak_run = 0;
+                        m.weak_place = None;
                     }
                     m.learn_appearance(q.confidence, context);
                     if let (Some(_), Some(t)) = (context, m.context.as_mut()) {
@@ -1295,6 +1304,63 @@ mod tests {
             c.0.confidence = 0.85;
         }
         assert!(learned.against_the_rig(&r).is_empty());
+        Ok(())
+    }
+
+    /// A gray 192x64 frame with a red 9x9 marker centred at `(marker_x, 30)` and a paler,
+    /// larger reddish disc (radius 8) centred at `(60, 30)`: a look-alike the marker's
+    /// weights hold only weakly.
+    fn marker_beside_a_pale_disc(marker_x: u32) -> RgbImage {
+        RgbImage::from_fn(192, 64, |x, y| {
+            let (dx, dy) = (f64::from(x) - 60.0, f64::from(y) - 30.0);
+            if y.abs_diff(30) <= 4 && x.abs_diff(marker_x) <= 4 {
+                image::Rgb([215, 25, 30])
+            } else if dx * dx + dy * dy <= 64.0 {
+                image::Rgb([170, 95, 90])
+            } else {
+                image::Rgb([100, 110, 95])
+            }
+        })
+    }
+
+    /// Where marker A is found in a frame with the marker at `(100, 30)`, its track having
+    /// followed the pale disc at `(60, 30)` on weak measurements for three frames, standing
+    /// still (`still`) or not.
+    fn found_after_weak_run(still: bool) -> Result<Option<Point2<f64>>> {
+        let mut t = Tracker::new(
+            TrackerConfig::default(),
+            &marker_beside_a_pale_disc(20),
+            None,
+            &[MarkerInit {
+                id: "A".into(),
+                window: PixelRect::new(15, 25, 11, 11),
+            }],
+        )?;
+        let disc = Point2::new(60.0, 30.0);
+        let m = &mut t.markers[0];
+        m.filter.position = disc;
+        m.filter.velocity = Vector2::zeros();
+        m.last_center = disc;
+        m.last_status = TrackStatus::Predicted;
+        m.confidence_mean = 0.6;
+        m.weak_run = WEAK_STILL_FRAMES;
+        m.weak_place = Some((disc, if still { WEAK_STILL_FRAMES } else { 1 }));
+        t.update(&marker_beside_a_pale_disc(100), None)?;
+        let o = &t.tracks()[0].observations[1];
+        Ok(o.center.filter(|_| o.status.found()))
+    }
+
+    #[test]
+    fn a_track_standing_still_on_weak_measurements_lets_go_for_its_marker() -> Result<()> {
+        // Held on the disc for three frames: the marker, 40 px away and sure, is taken.
+        let found = found_after_weak_run(true)?;
+        assert!(
+            found.is_some_and(|c| (c - Point2::new(100.0, 30.0)).norm() < 1.5),
+            "{found:?}"
+        );
+        // Weak measurements that moved (a blurred marker on its way) keep their hold.
+        let found = found_after_weak_run(false)?;
+        assert!(found.is_none(), "{found:?}");
         Ok(())
     }
 }

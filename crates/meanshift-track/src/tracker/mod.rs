@@ -223,6 +223,12 @@ const STOP_AFTER_MISSES: usize = 2;
 /// (`docs/validation.md`, "What a confidence value means"), found frames under 0.6 were
 /// within 3 px of the truth 27-28 % of the time and more than 8 px off 43-46 %.
 pub(crate) const TRUSTED_CONFIDENCE: f64 = 0.6;
+/// Weak measurements in a row, each within [`WEAK_STILL_WINDOWS`] of the one before, after which
+/// the track is taken to be held by a still look-alike rather than following its marker.
+const WEAK_STILL_FRAMES: usize = 3;
+/// Distance (windows) between two weak measurements in a row within which the track stood
+/// still.
+const WEAK_STILL_WINDOWS: f64 = 0.25;
 
 /// Whether the tracker followed a measurement in this observation: found, or a measurement
 /// under [`TRUSTED_CONFIDENCE`] reported as an estimate (`predicted` with a confidence;
@@ -527,6 +533,10 @@ struct MarkerState {
     /// Frames in a row followed on a measurement too weak to report as found (under
     /// [`TRUSTED_CONFIDENCE`], or cut): the search widens over them as over misses.
     weak_run: usize,
+    /// The last of the current run of weak measurements, and how many of the run's last
+    /// ones in a row lay each within [`WEAK_STILL_WINDOWS`] of the one before (see
+    /// [`MarkerState::held_by_still_weak`]).
+    weak_place: Option<(Point2<f64>, usize)>,
     last_status: TrackStatus,
     /// Where the marker was in the last frame and what surrounds it there, for the streak's
     /// trailing end in the next ([`Trail`]; set at the end of each frame).

@@ -570,7 +570,8 @@ impl Tracker {
     ///   lost past its coasting frames, whose grown gate tells where it may be, not that it
     ///   is there: a marker gone for ten frames would own its whole neighbourhood);
     /// - a marker whose quick pass saw it at its prediction, only dimmer than a track needs,
-    ///   is most likely still there: leaving its normal gate costs [`OWNED_COST`] too;
+    ///   is most likely still there: leaving its normal gate costs [`OWNED_COST`] too (not
+    ///   after weak measurements that stood still, [`MarkerState::held_by_still_weak`]);
     /// - another marker's home beyond this one's reach, or a place far beyond that reach from
     ///   its own home, costs [`HOME_COST`].
     fn colour_cost(
@@ -589,10 +590,11 @@ impl Tracker {
                 && same_look(other, m)
                 && self.in_normal_gate(o, p)
         });
-        let dim_here = quick[i].is_some_and(|q| {
-            q.measured.confidence >= DIM_SHARE * self.config.min_confidence
-                && self.in_normal_gate(i, q.measured.center)
-        });
+        let dim_here = !m.held_by_still_weak()
+            && quick[i].is_some_and(|q| {
+                q.measured.confidence >= DIM_SHARE * self.config.min_confidence
+                    && self.in_normal_gate(i, q.measured.center)
+            });
         let jump = if leaving && (owned || dim_here) {
             OWNED_COST
         } else {

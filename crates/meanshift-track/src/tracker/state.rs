@@ -37,6 +37,7 @@ impl MarkerState {
             misses: 0,
             exit_speed_px: 0.0,
             weak_run: 0,
+            weak_place: None,
             trail: None,
             last_status: TrackStatus::Tracked,
             context: None,
@@ -111,6 +112,11 @@ impl MarkerState {
                 .fold(f64::INFINITY, f64::min),
             _ => 0.0,
         };
+        let normal = if self.held_by_still_weak() {
+            wide.max(self.gate_var)
+        } else {
+            self.gate_var
+        };
         candidates
             .iter()
             .filter_map(|&(measured, context)| {
@@ -141,7 +147,7 @@ impl MarkerState {
                 Some(Scored {
                     measured,
                     context,
-                    cost: motion_cost(r2, self.gate_var, wide)
+                    cost: motion_cost(r2, normal, wide)
                         + appearance
                         + surroundings
                         + penalty
@@ -208,6 +214,21 @@ impl MarkerState {
         if self.last_status.found() {
             self.last_status = TrackStatus::Predicted;
         }
+    }
+
+    /// Whether the track has stood still on weak measurements for [`WEAK_STILL_FRAMES`]
+    /// frames in a row (each within [`WEAK_STILL_WINDOWS`] of the one before). A marker
+    /// measured weakly because it is blurred is moving; one that stands still on weak
+    /// measurements is more likely held by a still look-alike it slid onto at a turn (a
+    /// paler disc beside a swing's end held one for 28 frames while the marker swung past in
+    /// plain view), and a prediction that follows the look-alike keeps choosing it. So then
+    /// the quick pass's result is not accepted alone (detection looks in the gate), the
+    /// prediction counts no more than the manoeuvre's gate in the motion cost, and the weak
+    /// place does not hold the marker as a dim sighting of it would
+    /// (`Tracker::colour_cost`).
+    pub(super) fn held_by_still_weak(&self) -> bool {
+        self.weak_place
+            .is_some_and(|(_, still)| still >= WEAK_STILL_FRAMES)
     }
 
     /// Frames the search has gone on: misses, or frames followed only on weak measurements

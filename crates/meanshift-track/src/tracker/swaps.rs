@@ -433,6 +433,7 @@ impl Tracker {
         std::mem::swap(&mut a.depth_m, &mut b.depth_m);
         std::mem::swap(&mut a.misses, &mut b.misses);
         std::mem::swap(&mut a.weak_run, &mut b.weak_run);
+        std::mem::swap(&mut a.weak_place, &mut b.weak_place);
         std::mem::swap(&mut a.last_status, &mut b.last_status);
         std::mem::swap(&mut a.context, &mut b.context);
         std::mem::swap(&mut a.context_level, &mut b.context_level);
