@@ -1345,6 +1345,15 @@ mod tests {
         m.confidence_mean = 0.6;
         m.weak_run = WEAK_STILL_FRAMES;
         m.weak_place = Some((disc, if still { WEAK_STILL_FRAMES } else { 1 }));
+        // Away from its home (where it started, 40 px off): held, when still.
+        assert_eq!(m.held_by_still_weak(), still);
+        let home = m.home;
+        m.home = disc;
+        assert!(
+            !m.held_by_still_weak(),
+            "at its home a marker may rest half hidden"
+        );
+        m.home = home;
         t.update(&marker_beside_a_pale_disc(100), None)?;
         let o = &t.tracks()[0].observations[1];
         Ok(o.center.filter(|_| o.status.found()))

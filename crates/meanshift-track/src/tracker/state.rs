@@ -217,9 +217,11 @@ impl MarkerState {
     }
 
     /// Whether the track has stood still on weak measurements for [`WEAK_STILL_FRAMES`]
-    /// frames in a row (each within [`WEAK_STILL_WINDOWS`] of the one before). A marker
-    /// measured weakly because it is blurred is moving; one that stands still on weak
-    /// measurements is more likely held by a still look-alike it slid onto at a turn (a
+    /// frames in a row (each within [`WEAK_STILL_WINDOWS`] of the one before), more than
+    /// [`HOME_NEAR_WINDOWS`] from its home. A marker measured weakly because it is blurred
+    /// is moving, and one at rest (weak because half hidden) stands at its home; one that
+    /// stands still on weak measurements away from it is more likely held by a still
+    /// look-alike it slid onto at a turn (a
     /// paler disc beside a swing's end held one for 28 frames while the marker swung past in
     /// plain view), and a prediction that follows the look-alike keeps choosing it. So then
     /// the quick pass's result is not accepted alone (detection looks in the gate), the
@@ -227,8 +229,10 @@ impl MarkerState {
     /// place does not hold the marker as a dim sighting of it would
     /// (`Tracker::colour_cost`).
     pub(super) fn held_by_still_weak(&self) -> bool {
-        self.weak_place
-            .is_some_and(|(_, still)| still >= WEAK_STILL_FRAMES)
+        self.weak_place.is_some_and(|(at, still)| {
+            still >= WEAK_STILL_FRAMES
+                && (at - self.home).norm() > HOME_NEAR_WINDOWS * window_px(self)
+        })
     }
 
     /// Frames the search has gone on: misses, or frames followed only on weak measurements
