@@ -136,8 +136,10 @@ impl Tracker {
     }
 
     /// A marker whose track has stood still for [`PARKED_FRAMES`] frames, away from its home,
-    /// on a place where it once turned down a look-alike or where detection threw it by a
-    /// jump, is parked on a look-alike: a branch marker at rest stands at its home, and one
+    /// on a place where it once turned down a look-alike, where detection threw it by a
+    /// jump, or that it slid onto on [`SLID_FRAMES`] weak measurements in a row (mean-shift
+    /// modes of half confidence drifting onto a look-alike at a swing's turn), is parked on
+    /// a look-alike: a branch marker at rest stands at its home, and one
     /// held away from it got there by moving (followed by the quick pass, where no
     /// look-alike of its was seen while it was elsewhere). The place becomes a known static
     /// look-alike (the quick pass no longer accepts it, detection prices it), the frames since it came
@@ -462,6 +464,9 @@ struct Parked {
     since: usize,
 }
 
+/// Weak measurements in a row just before a stay that make it one the track slid into.
+const SLID_FRAMES: usize = 3;
+
 /// Where the track has stood still, found on at least [`PARKED_MIN_FOUND`] of the last
 /// [`PARKED_FRAMES`] frames, when that is away from the marker's home.
 fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
@@ -516,7 +521,11 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     // A track that came to the place straight from frames the marker was missing in (out
     // of the frame, hidden) was taken there by detection as much as one thrown there; off
     // the marker's own swing line the place is not one it is held on in a pull.
-    let back_from_loss = |k: usize| off_line && k >= 1 && !followed(&obs[k - 1]);
+    // So was one that slid there on weak measurements (half-confidence mean-shift modes
+    // drifting onto a look-alike at a swing's turn).
+    let weak = |o: &Observation| o.status == TrackStatus::Predicted && o.confidence > 0.0;
+    let slid_in = |k: usize| k >= SLID_FRAMES && obs[k - SLID_FRAMES..k].iter().all(weak);
+    let back_from_loss = |k: usize| (off_line && k >= 1 && !followed(&obs[k - 1])) || slid_in(k);
     let thrown_before = entered.filter(|&k| k < start && (thrown(k) || back_from_loss(k)));
     let jumped_in = thrown_before.is_some()
         || (start.max(1)..obs.len()).any(thrown)
@@ -748,6 +757,39 @@ mod tests {
         t.learn_parked();
         assert!(t.markers[0].on_distractor(there));
         assert_eq!(t.markers[0].misses, PARKED_FRAMES);
+        Ok(())
+    }
+
+    #[test]
+    fn a_track_that_slid_onto_a_still_place_on_weak_measurements_is_parked_there() -> Result<()> {
+        // From beside its home, A's track slides 8 px a frame on `weak` measurements
+        // (half-confidence mean-shift modes, reported predicted) onto a place 4 windows off,
+        // then stands there, found sure.
+        let slid = |weak: usize| -> Result<Tracker> {
+            let (mut t, side, home) = setup()?;
+            let there = Point2::new(home.x + 4.0 * side, home.y - 2.0 * side);
+            park(&mut t, home, 3);
+            for k in (1..=SLID_FRAMES).rev() {
+                park(&mut t, there + Vector2::new(0.0, 8.0 * k as f64), 1);
+            }
+            park(&mut t, there, PARKED_FRAMES);
+            let len = t.tracks[0].observations.len();
+            let slide = len - PARKED_FRAMES - weak;
+            for o in &mut t.tracks[0].observations[slide..len - PARKED_FRAMES] {
+                o.status = TrackStatus::Predicted;
+                o.confidence = 0.5;
+            }
+            t.learn_parked();
+            Ok(t)
+        };
+        let t = slid(SLID_FRAMES)?;
+        assert_eq!(t.markers[0].misses, PARKED_FRAMES);
+        let len = t.tracks[0].observations.len();
+        assert_revised_from(&t, len - PARKED_FRAMES - SLID_FRAMES);
+        // One weak frame fewer (a marker dimmed for a moment, then held in a pull): not
+        // parked.
+        let t = slid(SLID_FRAMES - 1)?;
+        assert_eq!(t.markers[0].misses, 0);
         Ok(())
     }
 
