@@ -523,8 +523,8 @@ fn parked_at(m: &MarkerState, obs: &[Observation]) -> Option<Parked> {
     // the marker's own swing line the place is not one it is held on in a pull.
     // So was one that slid there on weak measurements (half-confidence mean-shift modes
     // drifting onto a look-alike at a swing's turn).
-    let weak = |o: &Observation| o.status == TrackStatus::Predicted && o.confidence > 0.0;
-    let slid_in = |k: usize| k >= SLID_FRAMES && obs[k - SLID_FRAMES..k].iter().all(weak);
+    let slid_in =
+        |k: usize| k >= SLID_FRAMES && obs[k - SLID_FRAMES..k].iter().all(weakly_followed);
     let back_from_loss = |k: usize| (off_line && k >= 1 && !followed(&obs[k - 1])) || slid_in(k);
     let thrown_before = entered.filter(|&k| k < start && (thrown(k) || back_from_loss(k)));
     let jumped_in = thrown_before.is_some()

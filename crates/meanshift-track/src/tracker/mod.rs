@@ -235,7 +235,13 @@ const WEAK_STILL_WINDOWS: f64 = 0.25;
 /// coasting has confidence 0). The track's own rules (swaps, parking) read this, not the
 /// reported status.
 fn followed(o: &Observation) -> bool {
-    o.status.found() || (o.status == TrackStatus::Predicted && o.confidence > 0.0)
+    o.status.found() || weakly_followed(o)
+}
+
+/// Whether an observation is a weak measurement: followed, but reported as an estimate
+/// (`predicted` with its own confidence, not 0 as while coasting).
+fn weakly_followed(o: &Observation) -> bool {
+    o.status == TrackStatus::Predicted && o.confidence > 0.0
 }
 
 /// Distance, in windows, within which a same-look marker can take this one's place.
