@@ -911,6 +911,7 @@ pub(super) fn measured_at(region: &mut Region, m: &MarkerState, blob: &Blob) -> 
         moments: moments_of(region, window),
         cut: false,
         split: false,
+        spread: Some(blob.spread),
     }
 }
 
@@ -938,6 +939,7 @@ pub(super) fn template_candidates(
                 moments: None,
                 cut: false,
                 split: false,
+                spread: None,
             }
         })
         .collect()
@@ -963,6 +965,7 @@ pub(super) fn plain(region: &Region, mode: Mode) -> Measured {
         moments: mode.moments.or_else(|| moments_of(region, mode.window)),
         cut: false,
         split: false,
+        spread: None,
     }
 }
 

@@ -614,6 +614,7 @@ mod tests {
             moments: None,
             cut: false,
             split: false,
+            spread: None,
         };
         let b = t.markers[1].home;
         let b_found = |confidence| {
@@ -678,6 +679,7 @@ mod tests {
             moments: None,
             cut: false,
             split: false,
+            spread: None,
         };
         // Its upper part: centred 10 px from the remembered centre, but inside its box.
         let upper = measured(PixelRect::new(box_of.x, box_of.y, 13, 18));
@@ -1115,6 +1117,7 @@ mod tests {
                     moments: None,
                     cut: false,
                     split: false,
+                    spread: None,
                 };
                 let status = if k == 2 { status } else { TrackStatus::Tracked };
                 Some((q, status, None))
@@ -1189,6 +1192,7 @@ mod tests {
                 moments: None,
                 cut: false,
                 split: false,
+                spread: None,
             };
             (measured, Some(context))
         };

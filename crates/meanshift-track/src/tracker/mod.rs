@@ -147,6 +147,22 @@ const CONTEXT_SIGMA_MIN: f64 = 0.02;
 /// Least `1 - rho^2` of a marker's usual context correlation in [`state::correlation_spread`]
 /// (a correlation of 0.99): the learnt spread already covers noise above it.
 const CORRELATION_SPREAD_FLOOR: f64 = 0.02;
+/// Least way (windows) from the last measurement of a blob that counts as blurred along it
+/// (`MarkerState::blurred_along`): half a window, the reach of plain mean-shift.
+const BLURRED_MIN_WINDOWS: f64 = 0.5;
+/// Least ratio of a blurred blob's spread along its way to its spread across (standard
+/// deviations): a disc gives 1, a streak as long as two discs about 1.7.
+const BLURRED_ELONGATION: f64 = 1.5;
+/// Least confidence of a blurred blob, as a share of the marker's usual confidence: motion
+/// blur at a release takes about a third of a marker's saturation (issue 19's real clip, as
+/// [`BLUR_KEPT_SATURATION`]), and fainter drawn-out blobs are smears of twigs and edges (on
+/// the combined condition's seed 12004 a marker's track took one at 0.38 against its usual
+/// 0.85 and lost the marker for 35 frames).
+const BLURRED_KEPT_CONFIDENCE: f64 = 0.6;
+/// Cosine of the largest angle between a blurred blob's longer axis and its way from the last
+/// measurement (45 degrees: a release's first streak, drawn along the curve of the swing,
+/// lay 27 degrees off the chord on the blur condition's seed 14008).
+const BLURRED_MAX_ANGLE_COS: f64 = std::f64::consts::FRAC_1_SQRT_2;
 /// Most a candidate's confidence shortfall (from the best candidate's) may cost.
 const APPEARANCE_CAP: f64 = 8.0;
 /// Spreads below its usual confidence at which a measurement is not accepted without
@@ -413,6 +429,14 @@ const PALER_OFFSET_WINDOWS: f64 = 0.25;
 /// pixels, that raise its saturation floor (see `Tracker::background_floor`): a marker-sized
 /// patch of bark of its hue is enough for its blob to run on into.
 const BACKGROUND_PALER_MARKERS: f64 = 1.0;
+/// Share of a marker's core saturation under which pixels of its look do not weigh as the
+/// marker where nothing paler of its look raised its floor on the first frame (see
+/// `Tracker::own_floor`). Chosen between what it keeps out and what it must keep: a
+/// compressed frame's chroma blocks bled from a red marker into bark lie at 0.44-0.62 of
+/// its core (combined condition, seed 14000), and at 0.6 a heavily blurred release under a
+/// camera shake (blur condition, tuning seed 300), which the hue weights had carried, was
+/// lost for 9 frames; at 0.5 neither.
+const OWN_FLOOR_SATURATION: f64 = 0.5;
 /// Share of a marker's core saturation under which pixels of its look are paler than a
 /// blurred streak of it (motion blur at a release takes about a third of a marker's
 /// saturation: issue 19's real pull-and-release clip), and may be kept out by a raised
@@ -598,6 +622,9 @@ struct Measured {
     /// Whether this is a part of a blob shared with another marker's prediction (see
     /// [`candidates_in`]).
     split: bool,
+    /// The blob's weighted second central moments `[xx, xy, yy]` (pixels²), for a
+    /// measurement at a blob (see [`MarkerState::blurred_along`]).
+    spread: Option<[f64; 3]>,
 }
 
 /// A candidate of one marker, with its surroundings' correlation and its cost.
@@ -1058,6 +1085,7 @@ fn measured_at_point(center: Point2<f64>) -> Measured {
         moments: None,
         cut: false,
         split: false,
+        spread: None,
     }
 }
 

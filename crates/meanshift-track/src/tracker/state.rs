@@ -125,8 +125,15 @@ impl MarkerState {
                     return None;
                 }
                 let conf = measured.confidence;
-                let appearance = -conf.max(1e-3).ln()
-                    + (0.5 * ((best_conf - conf) / conf_sigma).powi(2)).min(APPEARANCE_CAP);
+                // A blob drawn out along its way from the last place is what a marker
+                // blurred by that motion looks like: paler than a still look-alike of its
+                // colour by its nature, so it is not priced for falling short of the best.
+                let shortfall = if self.blurred_along(&measured) {
+                    0.0
+                } else {
+                    (0.5 * ((best_conf - conf) / conf_sigma).powi(2)).min(APPEARANCE_CAP)
+                };
+                let appearance = -conf.max(1e-3).ln() + shortfall;
                 let surroundings = match context {
                     Some(c) if informative => {
                         (0.5 * ((best_context - c) / context_sigma).powi(2)).min(CONTEXT_CAP)
@@ -155,6 +162,42 @@ impl MarkerState {
                 })
             })
             .collect()
+    }
+
+    /// Whether `q` is a blob drawn out along its way from the last measurement, as a marker
+    /// blurred by that motion is: at least [`BLURRED_KEPT_CONFIDENCE`] of the marker's usual
+    /// confidence, at least [`BLURRED_MIN_WINDOWS`] from the last place, its weights'
+    /// spread along their longer axis at least [`BLURRED_ELONGATION`] times that across it
+    /// (standard deviations), and that axis within [`BLURRED_MAX_ANGLE_COS`]'s angle of the
+    /// way (a release's streak follows the swing's curve, not the chord from the last place).
+    pub(super) fn blurred_along(&self, q: &Measured) -> bool {
+        let Some([xx, xy, yy]) = q.spread else {
+            return false;
+        };
+        if q.confidence < BLURRED_KEPT_CONFIDENCE * self.confidence_mean {
+            return false;
+        }
+        let way = q.center - self.last_center;
+        let length = way.norm();
+        if length < BLURRED_MIN_WINDOWS * window_px(self) {
+            return false;
+        }
+        // The spread's principal axes: variances `mean ± root` along and across the longer.
+        let (mean, half_diff) = (0.5 * (xx + yy), 0.5 * (xx - yy));
+        let root = half_diff.hypot(xy);
+        let (long, short) = (mean + root, mean - root);
+        if long <= 0.0 || long < BLURRED_ELONGATION * BLURRED_ELONGATION * short.max(0.0) {
+            return false;
+        }
+        // The longer axis's direction, `(xy, long - xx)` or `(long - yy, xy)` (whichever is
+        // the longer vector), against the way.
+        let axis = if long - xx >= long - yy {
+            Vector2::new(xy, long - xx)
+        } else {
+            Vector2::new(long - yy, xy)
+        };
+        let n = axis.norm();
+        n > 0.0 && (axis.dot(&way) / (n * length)).abs() >= BLURRED_MAX_ANGLE_COS
     }
 
     /// Whether `p` lies more than [`FAR_OFF_LINE_SPREADS`] from the marker's swing line (never
@@ -764,6 +807,61 @@ mod tests {
         // The quick pass follows it across the line: that is where it is, recorded.
         m.found(at(0.0, 40.0), TrackStatus::Tracked, &config, None, 23);
         assert_ne!(m.swing.line(), Some(refit));
+        Ok(())
+    }
+
+    #[test]
+    fn a_streak_along_its_way_is_not_priced_for_being_paler_than_a_still_look_alike() -> Result<()>
+    {
+        let t = two_red_markers()?;
+        let mut m = t.markers[0].clone();
+        let last = m.last_center;
+        let side = window_px(&m);
+        // Learnt as steady: its confidence barely moves.
+        (m.confidence_mean, m.confidence_var) = (0.93, 0.0);
+        let blob = |dx: f64, dy: f64, confidence: f64, spread: [f64; 3]| Measured {
+            confidence,
+            spread: Some(spread),
+            ..measured_at_point(last + Vector2::new(dx, dy))
+        };
+        // A release's first streak, drawn out along its way (variances 34 and 7 px², the
+        // longer axis 30 degrees off the chord), and a crisp look-alike disc farther off.
+        let (a, c) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let (long, short) = (34.0, 7.0);
+        let tilted = [
+            long * a * a + short * c * c,
+            (long - short) * a * c,
+            long * c * c + short * a * a,
+        ];
+        let streak = blob(1.2 * side, 0.0, 0.69, tilted);
+        let disc = blob(-0.5 * side, -2.0 * side, 0.98, [6.5, 0.0, 6.3]);
+        assert!(m.blurred_along(&streak));
+        assert!(!m.blurred_along(&disc), "a disc is not drawn out");
+        // Not when the blob lies across its way, is too near to have moved, or is a plain
+        // mean-shift mode (no blob).
+        assert!(!m.blurred_along(&blob(0.0, 1.2 * side, 0.69, tilted)));
+        assert!(!m.blurred_along(&blob(0.3 * side, 0.0, 0.69, tilted)));
+        let mode = Measured {
+            spread: None,
+            ..streak
+        };
+        assert!(!m.blurred_along(&mode));
+        // Nor a drawn-out blob far fainter than the marker (a twig's smear).
+        assert!(!m.blurred_along(&blob(1.2 * side, 0.0, 0.38, tilted)));
+        // Both outside the normal gate and inside the manoeuvre's: the streak is chosen,
+        // while as a round blob of its paleness it would not be.
+        m.gate_var = 4.0;
+        let wide = 400.0;
+        let cost = |q: Measured, others: &[Measured]| {
+            let all: Vec<(Measured, Option<f64>)> = std::iter::once(q)
+                .chain(others.iter().copied())
+                .map(|q| (q, None))
+                .collect();
+            m.score(&all, wide, false)[0].cost
+        };
+        assert!(cost(streak, &[disc]) < cost(disc, &[streak]));
+        let round = blob(1.2 * side, 0.0, 0.69, [6.5, 0.0, 6.3]);
+        assert!(cost(round, &[disc]) > cost(disc, &[round]));
         Ok(())
     }
 }
