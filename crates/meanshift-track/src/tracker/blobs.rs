@@ -639,27 +639,54 @@ pub(super) fn blob_confidence(blob: &Blob, r: &Reference) -> f64 {
     colour * shape * held
 }
 
+/// What a marker's candidates are weighed against: where it and the markers about it are.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Near<'a> {
+    /// Where the marker is predicted (the quick pass), or the centre of its gate
+    /// (detection); `None` on the first frame.
+    pub(super) own: Option<Point2<f64>>,
+    /// Predictions of the other markers found in the last frame
+    /// ([`sharing_predictions`]).
+    pub(super) others: &'a [Point2<f64>],
+    /// The marker's static look-alikes a blob may hold beside it.
+    pub(super) look_alikes: &'a [Point2<f64>],
+    /// Where the markers of its look close to it were found last and are predicted
+    /// ([`partners_of`]).
+    pub(super) partners: &'a [Point2<f64>],
+    /// Those of `others` (the same points) whose markers the joint assignment decides
+    /// together with this one: every part of a blob shared with them is a candidate.
+    pub(super) contested: &'a [Point2<f64>],
+}
+
 /// The marker-like blobs of the region's weights as measurements (heaviest first), with the
 /// pairs of nearby fragments that make one marker together (a marker cut by a twig). A blob
-/// on which another marker (`others`: predictions of markers found in the last frame) is
-/// predicted as well as this one (`own`) is shared: this marker's candidate is the part
-/// nearer to it. So is a blob that no other marker shares and that holds one of the
-/// marker's static look-alikes away from `own` (`look_alikes`, see
-/// [`MarkerState::look_alikes_away`]), when the part nearer to `own` lies within
-/// [`OWN_PART_WINDOWS`] windows of it: a marker at rest beside a look-alike of its
-/// colour makes one blob with it when the two touch, and its candidate is its own part, not
-/// the pair's centroid. A blob that may be the marker and another of its look touching
-/// (`partners`: where those were found last and are predicted) also gives the marker's disc
-/// within it from `own` ([`pair_part`]).
+/// on which another marker (`near.others`: predictions of markers found in the last frame)
+/// is predicted as well as this one (`near.own`) is shared: this marker's candidate is the
+/// part nearer to it, and, where the other marker is undecided as well
+/// (`near.contested`), that marker's part too, for the joint assignment to choose between
+/// them: a marker half behind another of its look that turns while they overlap is
+/// predicted on the other's side, and the split by predictions gives each the other's
+/// part (crossing seed 14007, `docs/validation.md`). So is a blob that no other marker
+/// shares and that holds one of the marker's static look-alikes away from `own`
+/// (`near.look_alikes`, see [`MarkerState::look_alikes_away`]), when the part nearer to
+/// `own` lies within [`OWN_PART_WINDOWS`] windows of it: a marker at rest beside a
+/// look-alike of its colour makes one blob with it when the two touch, and its candidate is
+/// its own part, not the pair's centroid. A blob that may be the marker and another of its
+/// look touching (`near.partners`: where those were found last and are predicted) also
+/// gives the marker's disc within it from `own` ([`pair_part`]).
 pub(super) fn candidates_in(
     region: &mut Region,
     labeler: &mut Labeler,
     m: &MarkerState,
-    own: Option<Point2<f64>>,
-    others: &[Point2<f64>],
-    look_alikes: &[Point2<f64>],
-    partners: &[Point2<f64>],
+    near: &Near<'_>,
 ) -> Vec<Measured> {
+    let Near {
+        own,
+        others,
+        look_alikes,
+        partners,
+        contested,
+    } = *near;
     let blobs = labeler.blobs(
         &region.weights,
         region.rect,
@@ -690,11 +717,19 @@ pub(super) fn candidates_in(
         let beside_own =
             |with: &[Point2<f64>]| own.filter(|p| !with.is_empty() && on(p, b.bounds.grown(w, h)));
         if let Some(own) = beside_own(&sharing) {
-            if let Some(part) = own_part(labeler, region, m, b, own, &sharing) {
-                out.push(Measured {
-                    split: true,
-                    ..measured_at(region, m, &part)
-                });
+            let mut centres = vec![own];
+            centres.extend_from_slice(&sharing);
+            let parts = labeler.split(&region.weights, region.rect, b, &centres);
+            for (k, (part, centre)) in parts.iter().zip(&centres).enumerate() {
+                let offered = part.pixels > 0
+                    && plausible(part, &m.reference)
+                    && (k == 0 || contested.contains(centre));
+                if offered {
+                    out.push(Measured {
+                        split: true,
+                        ..measured_at(region, m, part)
+                    });
+                }
             }
             continue;
         }
@@ -1095,6 +1130,45 @@ mod tests {
             }
         }
         assert_eq!(rank_level(&[0; 256], 0), u8::MAX);
+    }
+
+    /// Two red squares overlapping in one blob, marker A predicted on the left one and
+    /// another marker on the right one: A's candidate is its own part, and the other's part
+    /// as well only where that marker is contested (undecided in the same assignment).
+    #[test]
+    fn a_shared_blob_offers_the_other_markers_part_only_when_it_is_contested() -> Result<()> {
+        let mut t = crate::tracker::two_red_markers()?;
+        let frame = crate::tracker::red_squares([60, 67]);
+        let m = &t.markers[0];
+        let rect = PixelRect::new(30, 10, 70, 40);
+        fill(
+            &mut t.region,
+            &t.config,
+            m,
+            &frame,
+            None,
+            None,
+            rect,
+            &[],
+            &[],
+            false,
+        );
+        let (own, other) = (Point2::new(59.0, 30.0), Point2::new(68.0, 30.0));
+        let others = [other];
+        let mut near = Near {
+            own: Some(own),
+            others: &others,
+            ..Near::default()
+        };
+        let alone = candidates_in(&mut t.region, &mut t.labeler, m, &near);
+        assert_eq!(alone.len(), 1, "{alone:?}");
+        assert!(alone[0].split && alone[0].center.x < 63.5, "{alone:?}");
+        near.contested = &others;
+        let both = candidates_in(&mut t.region, &mut t.labeler, m, &near);
+        assert_eq!(both.len(), 2, "{both:?}");
+        assert_eq!(both[0].center, alone[0].center);
+        assert!(both[1].split && both[1].center.x > 63.5, "{both:?}");
+        Ok(())
     }
 
     #[test]

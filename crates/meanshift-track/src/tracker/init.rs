@@ -178,10 +178,7 @@ impl Tracker {
                 &mut self.region,
                 &mut self.labeler,
                 &state,
-                None,
-                &[],
-                &[],
-                &[],
+                &Near::default(),
             )
             .into_iter()
             .filter(|c| c.holds.intersect(&w).area() > 0)
@@ -345,15 +342,8 @@ impl Tracker {
         match median {
             Some(median) if median < kept * core => (Some(floor_between(core, median, mask)), None),
             _ => {
-                let blobs = candidates_in(
-                    &mut self.region,
-                    &mut self.labeler,
-                    state,
-                    None,
-                    &[],
-                    &[],
-                    &[],
-                );
+                let blobs =
+                    candidates_in(&mut self.region, &mut self.labeler, state, &Near::default());
                 (None, Some(blobs))
             }
         }
@@ -403,7 +393,7 @@ impl Tracker {
             }
             let blobs = found.unwrap_or_else(|| {
                 weigh_first_frame(&mut self.region, &self.config, m, frame, depth);
-                candidates_in(&mut self.region, &mut self.labeler, m, None, &[], &[], &[])
+                candidates_in(&mut self.region, &mut self.labeler, m, &Near::default())
             });
             for c in blobs {
                 if centres

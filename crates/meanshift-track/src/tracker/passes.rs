@@ -87,15 +87,14 @@ impl Tracker {
             }
             let others = sharing_predictions(&self.markers, i, predictions);
             let look_alikes = self.look_alikes_beside(i, pred);
-            found = candidates_in(
-                &mut self.region,
-                &mut self.labeler,
-                m,
-                Some(pred),
-                &others,
-                &look_alikes,
-                &partners_of(&self.markers, i),
-            );
+            let near = Near {
+                own: Some(pred),
+                others: &others,
+                look_alikes: &look_alikes,
+                partners: &partners_of(&self.markers, i),
+                contested: &[],
+            };
+            found = candidates_in(&mut self.region, &mut self.labeler, m, &near);
             let image = (self.width, self.height);
             found
                 .iter_mut()
@@ -427,19 +426,19 @@ impl Tracker {
             cluttered = self.region.cluttered;
             let all: Vec<Point2<f64>> = self.markers.iter().map(|m| m.filter.position).collect();
             let others = sharing_predictions(&self.markers, i, &all);
+            let contested = self.contested(i, claimed);
             let look_alikes = self.look_alikes_beside(i, gate.center);
+            let near = Near {
+                own: Some(gate.center),
+                others: &others,
+                look_alikes: &look_alikes,
+                partners: &partners_of(&self.markers, i),
+                contested: &contested,
+            };
             found.extend(
-                candidates_in(
-                    &mut self.region,
-                    &mut self.labeler,
-                    m,
-                    Some(gate.center),
-                    &others,
-                    &look_alikes,
-                    &partners_of(&self.markers, i),
-                )
-                .into_iter()
-                .take(MAX_CANDIDATES),
+                candidates_in(&mut self.region, &mut self.labeler, m, &near)
+                    .into_iter()
+                    .take(MAX_CANDIDATES),
             );
         }
         let whole = quick.and_then(|q| whole_of_cut(m, &q.measured, &found[1..]));
@@ -486,6 +485,18 @@ impl Tracker {
             self.markers[i].dense_until = frame_index + CLUTTER_HOLD_FRAMES;
         }
         (scored, seen)
+    }
+
+    /// The predictions of the markers that detection decides together with marker `i`:
+    /// the others found in the last frame that no quick pass claimed (the same points as
+    /// [`sharing_predictions`] gives, for [`Near::contested`]).
+    fn contested(&self, i: usize, claimed: &[Claim]) -> Vec<Point2<f64>> {
+        self.markers
+            .iter()
+            .enumerate()
+            .filter(|&(j, o)| j != i && o.misses == 0 && claimed.iter().all(|c| c.0 != j))
+            .map(|(_, o)| o.filter.position)
+            .collect()
     }
 
     /// The joint, exclusive assignment of `candidates` to the `undecided` markers. Columns
