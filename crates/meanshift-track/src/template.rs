@@ -203,17 +203,17 @@ fn products_side_by_side<const N: usize>(
     for j in 0..rows {
         let a_row = &a[j * width..(j + 1) * width];
         let b_row = &b[j * b_stride..j * b_stride + width + N - 1];
-        for (i, x) in a_row.chunks_exact(4).enumerate() {
-            for (u, lanes) in p.iter_mut().enumerate() {
-                let y = &b_row[u + 4 * i..u + 4 * i + 4];
+        // Window by window (each lane's sum runs in the same order as when the windows
+        // took turns per chunk), over whole 4-lane arrays, which vectorises.
+        for (u, lanes) in p.iter_mut().enumerate() {
+            let b_u = &b_row[u..u + width];
+            for (x, y) in a_row.chunks_exact(4).zip(b_u.chunks_exact(4)) {
                 for k in 0..4 {
                     lanes[k] += x[k] * y[k];
                 }
             }
-        }
-        for t in 4 * chunks..width {
-            for (u, lanes) in p.iter_mut().enumerate() {
-                lanes[0] += a_row[t] * b_row[u + t];
+            for t in 4 * chunks..width {
+                lanes[0] += a_row[t] * b_u[t];
             }
         }
     }
