@@ -1004,8 +1004,11 @@ pub(super) fn plain(region: &Region, mode: Mode) -> Measured {
     }
 }
 
-/// The predictions of the markers other than `i` that were found in the last frame: where
-/// a blob must be shared.
+/// The predictions of the markers of `i`'s look ([`same_look`]) other than `i` that were
+/// found in the last frame: where a blob must be shared. A marker of another colour puts no
+/// weight in `i`'s blob, so its place does not cut the blob (a marker passing in front of
+/// another of a different colour was measured on the part away from it: 3-5 px off on the
+/// third generator's sequences, `docs/validation.md`).
 pub(super) fn sharing_predictions(
     markers: &[MarkerState],
     i: usize,
@@ -1015,7 +1018,7 @@ pub(super) fn sharing_predictions(
         .iter()
         .zip(predictions)
         .enumerate()
-        .filter(|(j, (m, _))| *j != i && m.misses == 0)
+        .filter(|(j, (m, _))| *j != i && m.misses == 0 && same_look(&markers[i], m))
         .map(|(_, (_, p))| *p)
         .collect()
 }

@@ -160,6 +160,40 @@ fn two_markers_of_one_colour_passing_partly_in_front_of_each_other_are_both_foll
 }
 
 #[test]
+fn a_marker_passing_in_front_of_one_of_another_colour_is_measured_on_its_whole_disc() {
+    // A (blue) passes in front of B (red), 8 px above it at the closest, each 14 px wide:
+    // A's blob holds no pixel of B, so B's place must not cut it (it was split between the
+    // two and A measured on its half away from B, 3-5 px off).
+    let blue = [40, 90, 200];
+    let path = |k: usize| {
+        let x = 20.0 + 2.0 * k as f64;
+        ((x, 28.0), (96.0 - x, 36.0))
+    };
+    let frame = |k: usize| {
+        let (a, b) = path(k);
+        disc_frame(&[(a.0, a.1, 7.0, blue), (b.0, b.1, 7.0, MARKER_RGB)])
+    };
+    let inits = [init("A", 13, 21, 15), init("B", 69, 29, 15)];
+    let mut t = Tracker::new(TrackerConfig::default(), &frame(0), None, &inits).expect("valid");
+    let frames = 31;
+    for k in 1..frames {
+        t.update(&frame(k), None).expect("same size");
+    }
+    let mut overlapped = 0;
+    for k in 1..frames {
+        let (a, b) = path(k);
+        overlapped += usize::from((a.0 - b.0).hypot(a.1 - b.1) < 14.0);
+        let o = t.tracks()[0].observations[k];
+        let off = o.center.map(|c| (c - Point2::new(a.0, a.1)).norm());
+        assert!(
+            o.status == TrackStatus::Tracked && off.is_some_and(|d| d <= 1.0),
+            "A, frame {k}: {o:?}, truth {a:?}"
+        );
+    }
+    assert!(overlapped >= 4, "the discs overlap on {overlapped} frames");
+}
+
+#[test]
 fn a_marker_touched_by_a_lost_one_of_its_colour_is_measured_on_its_own_disc() {
     // A moves toward B, is hidden for four frames (its track coasts, then it is looked for),
     // and comes to rest 10 px from B, each 14 px wide: one blob, which B's track alone
