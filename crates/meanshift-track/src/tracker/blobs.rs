@@ -633,10 +633,15 @@ pub(super) fn plausible(blob: &Blob, r: &Reference) -> bool {
 /// holds.
 pub(super) fn blob_confidence(blob: &Blob, r: &Reference) -> f64 {
     let colour = (blob.mass / blob.pixels as f64 / r.pixel_weight).min(1.0);
-    let wider = (blob.width_px() / r.width_px).ln().max(0.0);
-    let shape = (-0.5 * (wider / 0.35).powi(2)).exp();
     let held = (blob.pixels as f64 / (0.6 * r.pixels)).min(1.0);
-    colour * shape * held
+    colour * width_fit(blob, r) * held
+}
+
+/// [`blob_confidence`]'s width term, 0..=1: 1 for a blob no wider than the marker, falling
+/// off as the blob grows wider (a wider blob is another object).
+fn width_fit(blob: &Blob, r: &Reference) -> f64 {
+    let wider = (blob.width_px() / r.width_px).ln().max(0.0);
+    (-0.5 * (wider / 0.35).powi(2)).exp()
 }
 
 /// What a marker's candidates are weighed against: where it and the markers about it are.
@@ -648,6 +653,9 @@ pub(super) struct Near<'a> {
     /// Predictions of the other markers found in the last frame
     /// ([`sharing_predictions`]).
     pub(super) others: &'a [Point2<f64>],
+    /// The pixels of each of `others`' markers ([`Reference::pixels`], the same order);
+    /// a point without one is a marker of unknown size.
+    pub(super) others_pixels: &'a [f64],
     /// The marker's static look-alikes a blob may hold beside it.
     pub(super) look_alikes: &'a [Point2<f64>],
     /// Where the markers of its look close to it were found last and are predicted
@@ -666,7 +674,11 @@ pub(super) struct Near<'a> {
 /// (`near.contested`), that marker's part too, for the joint assignment to choose between
 /// them: a marker half behind another of its look that turns while they overlap is
 /// predicted on the other's side, and the split by predictions gives each the other's
-/// part (crossing seed 14007, `docs/validation.md`). So is a blob that no other marker
+/// part (crossing seed 14007, `docs/validation.md`). A part of a shared blob that holds
+/// no more than [`ONE_MARKER_PIXELS`] times one sharing marker's pixels and is wider than
+/// this marker carries a [`Measured::misfit`]: it may be that bigger marker alone, which
+/// both predictions fall on (a small marker turning beside a big one of its colour took
+/// the big one's disc, third generator's seed 27). So is a blob that no other marker
 /// shares and that holds one of the marker's static look-alikes away from `own`
 /// (`near.look_alikes`, see [`MarkerState::look_alikes_away`]), when the part nearer to
 /// `own` lies within [`OWN_PART_WINDOWS`] windows of it: a marker at rest beside a
@@ -683,6 +695,7 @@ pub(super) fn candidates_in(
     let Near {
         own,
         others,
+        others_pixels,
         look_alikes,
         partners,
         contested,
@@ -708,11 +721,15 @@ pub(super) fn candidates_in(
         if out.len() >= MAX_CANDIDATES {
             break;
         }
-        let sharing: Vec<Point2<f64>> = others
-            .iter()
-            .filter(|p| on(p, b.bounds.grown(w / 2, h / 2)))
-            .copied()
+        let sharers: Vec<usize> = (0..others.len())
+            .filter(|&j| on(&others[j], b.bounds.grown(w / 2, h / 2)))
             .collect();
+        let sharing: Vec<Point2<f64>> = sharers.iter().map(|&j| others[j]).collect();
+        // A blob no bigger than one of the markers sharing it may be that marker alone.
+        let one_other = sharers
+            .iter()
+            .filter_map(|&j| others_pixels.get(j))
+            .any(|&p| b.pixels as f64 <= ONE_MARKER_PIXELS * p);
         // `own` near the blob, and the places it shares the blob's pixels with.
         let beside_own =
             |with: &[Point2<f64>]| own.filter(|p| !with.is_empty() && on(p, b.bounds.grown(w, h)));
@@ -725,8 +742,17 @@ pub(super) fn candidates_in(
                     && plausible(part, &m.reference)
                     && (k == 0 || contested.contains(centre));
                 if offered {
+                    // A part of a blob that is one bigger marker's worth of pixels and much
+                    // wider than this marker is a piece of that marker, which both
+                    // predictions fall on, not this marker beside it.
+                    let misfit = if one_other {
+                        -width_fit(b, &m.reference).max(1e-3).ln()
+                    } else {
+                        0.0
+                    };
                     out.push(Measured {
                         split: true,
+                        misfit,
                         ..measured_at(region, m, part)
                     });
                 }
@@ -946,6 +972,7 @@ pub(super) fn measured_at(region: &mut Region, m: &MarkerState, blob: &Blob) -> 
         moments: moments_of(region, window),
         cut: false,
         split: false,
+        misfit: 0.0,
         spread: Some(blob.spread),
     }
 }
@@ -974,6 +1001,7 @@ pub(super) fn template_candidates(
                 moments: None,
                 cut: false,
                 split: false,
+                misfit: 0.0,
                 spread: None,
             }
         })
@@ -1000,11 +1028,12 @@ pub(super) fn plain(region: &Region, mode: Mode) -> Measured {
         moments: mode.moments.or_else(|| moments_of(region, mode.window)),
         cut: false,
         split: false,
+        misfit: 0.0,
         spread: None,
     }
 }
 
-/// The predictions of the markers of `i`'s look ([`same_look`]) other than `i` that were
+/// The predictions (and pixels) of the markers of `i`'s look ([`same_look`]) other than `i` that were
 /// found in the last frame: where a blob must be shared. A marker of another colour puts no
 /// weight in `i`'s blob, so its place does not cut the blob (a marker passing in front of
 /// another of a different colour was measured on the part away from it: 3-5 px off on the
@@ -1013,14 +1042,14 @@ pub(super) fn sharing_predictions(
     markers: &[MarkerState],
     i: usize,
     predictions: &[Point2<f64>],
-) -> Vec<Point2<f64>> {
+) -> (Vec<Point2<f64>>, Vec<f64>) {
     markers
         .iter()
         .zip(predictions)
         .enumerate()
         .filter(|(j, (m, _))| *j != i && m.misses == 0 && same_look(&markers[i], m))
-        .map(|(_, (_, p))| *p)
-        .collect()
+        .map(|(_, (m, p))| (*p, m.reference.pixels))
+        .unzip()
 }
 
 /// True when `at` is on another marker's predicted place: nearer to that marker's prediction
@@ -1133,6 +1162,70 @@ mod tests {
             }
         }
         assert_eq!(rank_level(&[0; 256], 0), u8::MAX);
+    }
+
+    /// Marker A (a red square 9 px wide) predicted, together with another marker of its
+    /// colour, on a red square 15 px wide, its own square beside it: the part of the wide
+    /// square that the split gives A is priced for the square being the other marker's
+    /// worth of pixels and wider than A, and A's own square is its best candidate; the
+    /// part is not priced where the other marker's size is unknown or the blob holds more
+    /// than it.
+    #[test]
+    fn a_part_of_a_wider_marker_that_both_are_predicted_on_is_priced() -> Result<()> {
+        let mut t = crate::tracker::two_red_markers()?;
+        let frame = RgbImage::from_fn(192, 64, |x, y| {
+            let wide = x.abs_diff(60) <= 7 && y.abs_diff(30) <= 7;
+            let own = x.abs_diff(90) <= 4 && y.abs_diff(30) <= 4;
+            if wide || own {
+                image::Rgb([215, 25, 30])
+            } else {
+                image::Rgb([100, 110, 95])
+            }
+        });
+        let m = &t.markers[0];
+        let rect = PixelRect::new(40, 10, 70, 40);
+        fill(
+            &mut t.region,
+            &t.config,
+            m,
+            &frame,
+            None,
+            None,
+            rect,
+            &[],
+            &[],
+            false,
+        );
+        let others = [Point2::new(59.0, 30.0)];
+        let mut near = Near {
+            own: Some(Point2::new(61.0, 30.0)),
+            others: &others,
+            others_pixels: &[225.0],
+            ..Near::default()
+        };
+        let found = candidates_in(&mut t.region, &mut t.labeler, m, &near);
+        let part = found
+            .iter()
+            .find(|c| c.split)
+            .expect("the wide square's part");
+        let beside = found
+            .iter()
+            .find(|c| (c.center - Point2::new(90.0, 30.0)).norm() < 1.0)
+            .expect("A's own square");
+        assert!(part.misfit > 0.5 && beside.misfit == 0.0, "{found:?}");
+        let with_context: Vec<(Measured, Option<f64>)> = found.iter().map(|&c| (c, None)).collect();
+        let scored = m.score(&with_context, 1e4, false);
+        let best = scored.iter().min_by(|a, b| a.cost.total_cmp(&b.cost));
+        assert_eq!(best.map(|b| b.measured.center), Some(beside.center));
+        for pixels in [&[][..], &[100.0][..]] {
+            near.others_pixels = pixels;
+            let found = candidates_in(&mut t.region, &mut t.labeler, m, &near);
+            assert!(
+                found.iter().all(|c| c.misfit == 0.0),
+                "{pixels:?}: {found:?}"
+            );
+        }
+        Ok(())
     }
 
     /// Two red squares overlapping in one blob, marker A predicted on the left one and

@@ -614,6 +614,7 @@ mod tests {
             moments: None,
             cut: false,
             split: false,
+            misfit: 0.0,
             spread: None,
         };
         let b = t.markers[1].home;
@@ -679,6 +680,7 @@ mod tests {
             moments: None,
             cut: false,
             split: false,
+            misfit: 0.0,
             spread: None,
         };
         // Its upper part: centred 10 px from the remembered centre, but inside its box.
@@ -1117,6 +1119,7 @@ mod tests {
                     moments: None,
                     cut: false,
                     split: false,
+                    misfit: 0.0,
                     spread: None,
                 };
                 let status = if k == 2 { status } else { TrackStatus::Tracked };
@@ -1192,6 +1195,7 @@ mod tests {
                 moments: None,
                 cut: false,
                 split: false,
+                misfit: 0.0,
                 spread: None,
             };
             (measured, Some(context))

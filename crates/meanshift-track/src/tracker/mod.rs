@@ -463,6 +463,9 @@ const WHOLE_HOLDS_SHARE: f64 = 0.8;
 const WHOLE_CONFIDENCE_SHARE: f64 = 0.9;
 /// A blob needs at least this share of the marker's pixels (a partly covered marker).
 const BLOB_MIN_PIXELS: f64 = 0.15;
+/// A blob shared by two markers' predictions holding at most this many times one of them's
+/// pixels may be that marker alone (see [`blobs::candidates_in`]).
+const ONE_MARKER_PIXELS: f64 = 1.15;
 /// A candidate blob's width (minor axis) lies within these multiples of the marker's.
 const BLOB_WIDTH_RANGE: [f64; 2] = [0.4, 1.7];
 /// Longest streak a blob may be, in marker widths (a marker swept across 5 of its widths
@@ -622,6 +625,9 @@ struct Measured {
     /// Whether this is a part of a blob shared with another marker's prediction (see
     /// [`candidates_in`]).
     split: bool,
+    /// What a split part is priced for its blob being one other marker's worth of pixels
+    /// and wider than this marker (see [`candidates_in`]); 0 elsewhere.
+    misfit: f64,
     /// The blob's weighted second central moments `[xx, xy, yy]` (pixels²), for a
     /// measurement at a blob (see [`MarkerState::blurred_along`]).
     spread: Option<[f64; 3]>,
@@ -1085,6 +1091,7 @@ fn measured_at_point(center: Point2<f64>) -> Measured {
         moments: None,
         cut: false,
         split: false,
+        misfit: 0.0,
         spread: None,
     }
 }

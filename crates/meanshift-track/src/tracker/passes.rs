@@ -85,11 +85,12 @@ impl Tracker {
                 };
                 return (Some(scored), Vec::new());
             }
-            let others = sharing_predictions(&self.markers, i, predictions);
+            let (others, others_pixels) = sharing_predictions(&self.markers, i, predictions);
             let look_alikes = self.look_alikes_beside(i, pred);
             let near = Near {
                 own: Some(pred),
                 others: &others,
+                others_pixels: &others_pixels,
                 look_alikes: &look_alikes,
                 partners: &partners_of(&self.markers, i),
                 contested: &[],
@@ -425,12 +426,13 @@ impl Tracker {
             );
             cluttered = self.region.cluttered;
             let all: Vec<Point2<f64>> = self.markers.iter().map(|m| m.filter.position).collect();
-            let others = sharing_predictions(&self.markers, i, &all);
+            let (others, others_pixels) = sharing_predictions(&self.markers, i, &all);
             let contested = self.contested(i, claimed);
             let look_alikes = self.look_alikes_beside(i, gate.center);
             let near = Near {
                 own: Some(gate.center),
                 others: &others,
+                others_pixels: &others_pixels,
                 look_alikes: &look_alikes,
                 partners: &partners_of(&self.markers, i),
                 contested: &contested,

@@ -158,7 +158,8 @@ impl MarkerState {
                         + appearance
                         + surroundings
                         + penalty
-                        + off_line,
+                        + off_line
+                        + measured.misfit,
                 })
             })
             .collect()
