@@ -563,6 +563,10 @@ struct MarkerState {
     /// Speed (pixels per frame) at the first frame of the current run of misses: how deep
     /// into the frame a marker that left it can be when it is first seen again.
     exit_speed_px: f64,
+    /// Whether the last measurement found the marker again far from where coasting put it
+    /// (its motion restarted, see [`MarkerState::found`]): a marker found again at the
+    /// border after it was out of the frame came in across it, and has not left.
+    restarted: bool,
     /// Frames in a row followed on a measurement too weak to report as found (under
     /// [`TRUSTED_CONFIDENCE`], or cut): the search widens over them as over misses.
     weak_run: usize,

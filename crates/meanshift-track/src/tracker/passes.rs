@@ -341,10 +341,14 @@ impl Tracker {
         // edge, on the third generator's tuning seeds 6, 8, 12 and 22, and on our
         // generator's combined seed 1005 a marker gone out at the right took another's
         // place 200 px inside). Once the prediction is deeper than that (its swing or its
-        // hold brings it back), the gate is as for any marker.
+        // hold brings it back), the gate is as for any marker. So is it for a marker last
+        // found again far from where it coasted (one seen again at the border after it was
+        // out of the frame came in across it, and swings on inside: the third generator's
+        // seed 26 lost one so for 5 frames while it passed 20-100 px below the border).
         let entry_px = BORDER_WINDOWS * side
             + ENTRY_SPEED_FRAMES * m.exit_speed_px.max(ENTRY_RELEASE_WINDOWS * side);
         let entry = (m.misses > 0
+            && !m.restarted
             && border_gap < BORDER_WINDOWS * side + m.exit_speed_px
             && exit_edge.depth(filter.position, size) <= entry_px)
             .then_some((exit_edge, entry_px));

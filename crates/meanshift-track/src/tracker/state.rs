@@ -36,6 +36,7 @@ impl MarkerState {
             depth_m: None,
             misses: 0,
             exit_speed_px: 0.0,
+            restarted: false,
             weak_run: 0,
             weak_place: None,
             trail: None,
@@ -474,7 +475,8 @@ impl MarkerState {
             self.reach_px = self.reach_px.max((q.center - self.home).norm());
         }
         let side = window_px(self);
-        if self.searching() >= STOP_AFTER_MISSES && innovation > side * side {
+        self.restarted = self.searching() >= STOP_AFTER_MISSES && innovation > side * side;
+        if self.restarted {
             // Found again after frames of coasting (missed, or followed only on weak
             // measurements), a window or more from where the coasting put it: that jump is not
             // a velocity (it made a marker found again at the end of a swing fly off the

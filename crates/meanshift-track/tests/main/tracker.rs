@@ -194,6 +194,55 @@ fn a_marker_passing_in_front_of_one_of_another_colour_is_measured_on_its_whole_d
 }
 
 #[test]
+fn a_marker_that_came_back_into_the_frame_is_looked_for_inside_it() {
+    // A leaves the frame at the top, comes back in (found again at the border), is hidden
+    // for a frame and shows again 100 px below the border, swinging on down: it came in
+    // across the border and must not be looked for only near it, as a marker that left.
+    let at = |k: usize| -> Option<f64> {
+        match k {
+            0..=3 => Some(40.0 - 15.0 * k as f64),
+            4..=8 => Some(-30.0),
+            9 => Some(12.0),
+            10 => None,
+            // Slowing down as a swing does toward its end.
+            _ => {
+                let j = (k - 11) as f64;
+                Some(110.0 + 25.0 * j - 2.0 * j * j)
+            }
+        }
+    };
+    let frame = |k: usize| {
+        RgbImage::from_fn(80, 200, |x, y| {
+            let on = at(k).is_some_and(|cy| {
+                (f64::from(x) - 40.0).powi(2) + (f64::from(y) - cy).powi(2) <= 49.0
+            });
+            Rgb(if on { MARKER_RGB } else { [100, 110, 95] })
+        })
+    };
+    let inits = [init("A", 33, 33, 15)];
+    let mut t = Tracker::new(TrackerConfig::default(), &frame(0), None, &inits).expect("valid");
+    let frames = 18;
+    for k in 1..frames {
+        t.update(&frame(k), None).expect("same size");
+    }
+    let track = &t.tracks()[0];
+    assert!(
+        track.observations[9].status.found(),
+        "{:?}",
+        track.observations[9]
+    );
+    for k in 12..frames {
+        let o = track.observations[k];
+        let truth = Point2::new(40.0, at(k).expect("in view"));
+        let off = o.center.map(|c| (c - truth).norm());
+        assert!(
+            o.status.found() && off.is_some_and(|d| d <= TOLERANCE_PX),
+            "frame {k}: {o:?}, truth {truth}"
+        );
+    }
+}
+
+#[test]
 fn a_marker_touched_by_a_lost_one_of_its_colour_is_measured_on_its_own_disc() {
     // A moves toward B, is hidden for four frames (its track coasts, then it is looked for),
     // and comes to rest 10 px from B, each 14 px wide: one blob, which B's track alone
