@@ -742,8 +742,8 @@ pub(super) fn candidates_in(
                     && plausible(part, &m.reference)
                     && (k == 0 || contested.contains(centre));
                 if offered {
-                    // A part of a blob that is one bigger marker's worth of pixels and much
-                    // wider than this marker is a piece of that marker, which both
+                    // A part of a blob that is one other marker's worth of pixels and wider
+                    // than this marker may be a piece of that marker, which both
                     // predictions fall on, not this marker beside it.
                     let misfit = if one_other {
                         -width_fit(b, &m.reference).max(1e-3).ln()
@@ -1033,11 +1033,12 @@ pub(super) fn plain(region: &Region, mode: Mode) -> Measured {
     }
 }
 
-/// The predictions (and pixels) of the markers of `i`'s look ([`same_look`]) other than `i` that were
-/// found in the last frame: where a blob must be shared. A marker of another colour puts no
-/// weight in `i`'s blob, so its place does not cut the blob (a marker passing in front of
-/// another of a different colour was measured on the part away from it: 3-5 px off on the
-/// third generator's sequences, `docs/validation.md`).
+/// The predictions of the markers of `i`'s look ([`same_look`]) other than `i` that were
+/// found in the last frame, and their pixels ([`Reference::pixels`]): where a blob must be
+/// shared. A marker of another colour puts no weight in `i`'s blob, so its place does not
+/// cut the blob (a marker passing in front of another of a different colour was measured on
+/// the part away from it: 3-5 px off on the third generator's sequences,
+/// `docs/validation.md`).
 pub(super) fn sharing_predictions(
     markers: &[MarkerState],
     i: usize,

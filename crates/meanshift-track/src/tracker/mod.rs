@@ -463,8 +463,8 @@ const WHOLE_HOLDS_SHARE: f64 = 0.8;
 const WHOLE_CONFIDENCE_SHARE: f64 = 0.9;
 /// A blob needs at least this share of the marker's pixels (a partly covered marker).
 const BLOB_MIN_PIXELS: f64 = 0.15;
-/// A blob shared by two markers' predictions holding at most this many times one of them's
-/// pixels may be that marker alone (see [`blobs::candidates_in`]).
+/// A blob that two markers' predictions fall on and that holds at most this many times the
+/// pixels of one of them may be that marker alone (see [`blobs::candidates_in`]).
 const ONE_MARKER_PIXELS: f64 = 1.15;
 /// A candidate blob's width (minor axis) lies within these multiples of the marker's.
 const BLOB_WIDTH_RANGE: [f64; 2] = [0.4, 1.7];
