@@ -637,6 +637,26 @@ pub(super) fn blob_confidence(blob: &Blob, r: &Reference) -> f64 {
     colour * width_fit(blob, r) * held
 }
 
+/// The places of `near.others` that share `blob` (`sharing(p)`), and whether the blob holds
+/// at most [`ONE_MARKER_PIXELS`] times one of their markers' pixels (it may be that marker
+/// alone).
+fn sharing_blob(
+    blob: &Blob,
+    near: &Near<'_>,
+    sharing: impl Fn(&Point2<f64>) -> bool,
+) -> (Vec<Point2<f64>>, bool) {
+    let mut places = Vec::new();
+    let mut one_other = false;
+    for (j, p) in near.others.iter().enumerate().filter(|(_, p)| sharing(p)) {
+        places.push(*p);
+        one_other |= near
+            .others_pixels
+            .get(j)
+            .is_some_and(|&n| blob.pixels as f64 <= ONE_MARKER_PIXELS * n);
+    }
+    (places, one_other)
+}
+
 /// [`blob_confidence`]'s width term, 0..=1: 1 for a blob no wider than the marker, falling
 /// off as the blob grows wider (a wider blob is another object).
 fn width_fit(blob: &Blob, r: &Reference) -> f64 {
@@ -694,11 +714,10 @@ pub(super) fn candidates_in(
 ) -> Vec<Measured> {
     let Near {
         own,
-        others,
-        others_pixels,
         look_alikes,
         partners,
         contested,
+        ..
     } = *near;
     let blobs = labeler.blobs(
         &region.weights,
@@ -721,15 +740,7 @@ pub(super) fn candidates_in(
         if out.len() >= MAX_CANDIDATES {
             break;
         }
-        let sharers: Vec<usize> = (0..others.len())
-            .filter(|&j| on(&others[j], b.bounds.grown(w / 2, h / 2)))
-            .collect();
-        let sharing: Vec<Point2<f64>> = sharers.iter().map(|&j| others[j]).collect();
-        // A blob no bigger than one of the markers sharing it may be that marker alone.
-        let one_other = sharers
-            .iter()
-            .filter_map(|&j| others_pixels.get(j))
-            .any(|&p| b.pixels as f64 <= ONE_MARKER_PIXELS * p);
+        let (sharing, one_other) = sharing_blob(b, near, |p| on(p, b.bounds.grown(w / 2, h / 2)));
         // `own` near the blob, and the places it shares the blob's pixels with.
         let beside_own =
             |with: &[Point2<f64>]| own.filter(|p| !with.is_empty() && on(p, b.bounds.grown(w, h)));
@@ -1165,6 +1176,24 @@ mod tests {
         assert_eq!(rank_level(&[0; 256], 0), u8::MAX);
     }
 
+    /// Marker A's weights over `rect` of `frame` into the tracker's region (no streak, no
+    /// masks, every pixel weighed).
+    fn fill_marker_a(t: &mut Tracker, frame: &RgbImage, rect: PixelRect) {
+        let m = &t.markers[0];
+        fill(
+            &mut t.region,
+            &t.config,
+            m,
+            frame,
+            None,
+            None,
+            rect,
+            &[],
+            &[],
+            false,
+        );
+    }
+
     /// Marker A (a red square 9 px wide) predicted, together with another marker of its
     /// colour, on a red square 15 px wide, its own square beside it: the part of the wide
     /// square that the split gives A is priced for the square being the other marker's
@@ -1183,20 +1212,8 @@ mod tests {
                 image::Rgb([100, 110, 95])
             }
         });
+        fill_marker_a(&mut t, &frame, PixelRect::new(40, 10, 70, 40));
         let m = &t.markers[0];
-        let rect = PixelRect::new(40, 10, 70, 40);
-        fill(
-            &mut t.region,
-            &t.config,
-            m,
-            &frame,
-            None,
-            None,
-            rect,
-            &[],
-            &[],
-            false,
-        );
         let others = [Point2::new(59.0, 30.0)];
         let mut near = Near {
             own: Some(Point2::new(61.0, 30.0)),
@@ -1236,20 +1253,8 @@ mod tests {
     fn a_shared_blob_offers_the_other_markers_part_only_when_it_is_contested() -> Result<()> {
         let mut t = crate::tracker::two_red_markers()?;
         let frame = crate::tracker::red_squares([60, 67]);
+        fill_marker_a(&mut t, &frame, PixelRect::new(30, 10, 70, 40));
         let m = &t.markers[0];
-        let rect = PixelRect::new(30, 10, 70, 40);
-        fill(
-            &mut t.region,
-            &t.config,
-            m,
-            &frame,
-            None,
-            None,
-            rect,
-            &[],
-            &[],
-            false,
-        );
         let (own, other) = (Point2::new(59.0, 30.0), Point2::new(68.0, 30.0));
         let others = [other];
         let mut near = Near {

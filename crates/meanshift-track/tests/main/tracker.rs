@@ -41,6 +41,15 @@ fn disc_frame(centers: &[(f64, f64, f64, [u8; 3])]) -> RgbImage {
     })
 }
 
+/// A default tracker from `inits` on `frame(0)`, updated with `frame(1..frames)`.
+fn track_frames(inits: &[MarkerInit], frames: usize, frame: impl Fn(usize) -> RgbImage) -> Tracker {
+    let mut t = Tracker::new(TrackerConfig::default(), &frame(0), None, inits).expect("valid");
+    for k in 1..frames {
+        t.update(&frame(k), None).expect("same size");
+    }
+    t
+}
+
 fn init(id: &str, x: i32, y: i32, size: i32) -> MarkerInit {
     MarkerInit {
         id: id.into(),
@@ -137,11 +146,8 @@ fn two_markers_of_one_colour_passing_partly_in_front_of_each_other_are_both_foll
         disc_frame(&[(a.0, a.1, 7.0, MARKER_RGB), (b.0, b.1, 7.0, MARKER_RGB)])
     };
     let inits = [init("A", 11, 20, 15), init("B", 71, 30, 15)];
-    let mut t = Tracker::new(TrackerConfig::default(), &frame(0), None, &inits).expect("valid");
     let frames = 31;
-    for k in 1..frames {
-        t.update(&frame(k), None).expect("same size");
-    }
+    let t = track_frames(&inits, frames, frame);
     let mut merged = 0;
     for k in 1..frames {
         let (a, b) = path(k);
@@ -174,11 +180,8 @@ fn a_marker_passing_in_front_of_one_of_another_colour_is_measured_on_its_whole_d
         disc_frame(&[(a.0, a.1, 7.0, blue), (b.0, b.1, 7.0, MARKER_RGB)])
     };
     let inits = [init("A", 13, 21, 15), init("B", 69, 29, 15)];
-    let mut t = Tracker::new(TrackerConfig::default(), &frame(0), None, &inits).expect("valid");
     let frames = 31;
-    for k in 1..frames {
-        t.update(&frame(k), None).expect("same size");
-    }
+    let t = track_frames(&inits, frames, frame);
     let mut overlapped = 0;
     for k in 1..frames {
         let (a, b) = path(k);
@@ -220,11 +223,8 @@ fn a_marker_that_came_back_into_the_frame_is_looked_for_inside_it() {
         })
     };
     let inits = [init("A", 33, 33, 15)];
-    let mut t = Tracker::new(TrackerConfig::default(), &frame(0), None, &inits).expect("valid");
     let frames = 18;
-    for k in 1..frames {
-        t.update(&frame(k), None).expect("same size");
-    }
+    let t = track_frames(&inits, frames, frame);
     let track = &t.tracks()[0];
     assert!(
         track.observations[9].status.found(),
@@ -264,11 +264,8 @@ fn a_marker_touched_by_a_lost_one_of_its_colour_is_measured_on_its_own_disc() {
         disc_frame(&discs)
     };
     let inits = [init("A", 13, 25, 15), init("B", 63, 25, 15)];
-    let mut t = Tracker::new(TrackerConfig::default(), &frame(0), None, &inits).expect("valid");
     let frames = 20;
-    for k in 1..frames {
-        t.update(&frame(k), None).expect("same size");
-    }
+    let t = track_frames(&inits, frames, frame);
     for k in 10..frames {
         let o = t.tracks()[1].observations[k];
         let off = o.center.map(|c| (c - Point2::new(b.0, b.1)).norm());
