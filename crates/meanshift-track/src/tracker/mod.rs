@@ -103,6 +103,18 @@ pub use track::{DepthView, MarkerInit, Observation, Track, TrackStatus, TrackSum
 /// Squared gate distance (2 degrees of freedom) inside which a measurement belongs to a
 /// prediction: the chi-square quantile of 0.999.
 const GATE_CHI2: f64 = 13.82;
+/// The margin of a settled marker's narrow quick region about its window, in windows (a
+/// quarter each way: 1.5x1.5 windows, a quarter of the full region's 3x3), and how far from
+/// the prediction the narrow pass's best may lie and still stand.
+const NARROW_REACH_WINDOWS: f64 = 0.25;
+/// A marker is settled for a narrow quick pass (see [`Tracker::quick_pass`]) when its gate's
+/// radius is at most this share of its window...
+const NARROW_GATE_WINDOWS: f64 = 0.75;
+/// ... and no look-alike it knows lies within this many windows of its prediction.
+const NARROW_CLEAR_WINDOWS: f64 = 1.75;
+/// ... and its full region was weighed, holding nothing but the marker, at most this many
+/// frames before.
+const NARROW_RECHECK_FRAMES: usize = 8;
 /// Speed (windows per frame) up to which a marker found in the last frame counts as at rest
 /// beside its static look-alikes (see `MarkerState::look_alikes_away`): a moving marker's
 /// blob is a streak that a split would cut.
@@ -567,6 +579,9 @@ struct MarkerState {
     /// (its motion restarted, see [`MarkerState::found`]): a marker found again at the
     /// border after it was out of the frame came in across it, and has not left.
     restarted: bool,
+    /// The frame whose full quick region last held no candidate but the marker, while no
+    /// later one held another (see [`Tracker::quick_pass`]).
+    clear_at: Option<usize>,
     /// Frames in a row followed on a measurement too weak to report as found (under
     /// [`TRUSTED_CONFIDENCE`], or cut): the search widens over them as over misses.
     weak_run: usize,
@@ -656,6 +671,8 @@ struct Candidate {
 
 /// A marker's measurement in a frame, its status and its surroundings' correlation.
 type Found = (Measured, TrackStatus, Option<f64>);
+/// A quick pass's best candidate and the places of the others.
+type QuickFound = (Option<Scored>, Vec<(Point2<f64>, PixelRect)>);
 /// A place claimed in a frame: the marker, the pixels it holds, its centre.
 type Claim = (usize, PixelRect, Point2<f64>);
 

@@ -37,6 +37,7 @@ impl MarkerState {
             misses: 0,
             exit_speed_px: 0.0,
             restarted: false,
+            clear_at: None,
             weak_run: 0,
             weak_place: None,
             trail: None,
