@@ -19,8 +19,9 @@ impl Tracker {
     /// region is weighed again at least every [`NARROW_RECHECK_FRAMES`] frames, so that
     /// look-alikes near the marker are seen and remembered as before (a narrow region
     /// every frame left one unlearnt and lost a marker for five frames at its release on
-    /// the third generator's seed 2). The same tracks on the stress and third-generator
-    /// sequences, for 13 % fewer instructions on the Kinect-style condition.
+    /// the third generator's seed 2). The same tracks on the stress sequences and on all
+    /// third-generator ones but one (hs model, seed 109, which gained), for 13 % fewer
+    /// instructions on the Kinect-style condition (`docs/benchmarks.md`).
     pub(super) fn quick_pass(
         &mut self,
         frame: &RgbImage,
