@@ -328,6 +328,24 @@ impl Streak<'_> {
     }
 }
 
+/// Side of the neighbourhood [`Region::grayer_streaks`] sums (pixels).
+const LOCAL_SIDE_PX: usize = 2 * STREAK_LOCAL_RADIUS_PX + 1;
+
+/// Add to `off` and `scale`, in order, the `offs` and `scales` of the pixels whose weight
+/// (`weights`) is positive.
+#[inline(always)]
+fn add_weighed<W, L>(weights: W, offs: L, scales: L, off: &mut f32, scale: &mut f32)
+where
+    W: IntoIterator<Item = f32>,
+    L: IntoIterator<Item = f32>,
+{
+    for ((wt, o), s) in weights.into_iter().zip(offs).zip(scales) {
+        let weighs = if wt > 0.0 { 1.0 } else { 0.0 };
+        *off += weighs * o;
+        *scale += weighs * s;
+    }
+}
+
 /// `1 / sqrt(x)` to about 0.2 % (one Newton step from the bit-level estimate), 0 for `x`
 /// of 0 or less: without a square root or a division, so that the streak loop stays cheap
 /// where it only keeps the distance for [`Region::grayer_streaks`]'s sums.
@@ -978,14 +996,19 @@ impl Region {
                 let (mut off, mut scale) = (0.0f32, 0.0f32);
                 for ny in y0..y1 {
                     let run = ny * w + x0..ny * w + x1;
-                    let near = weights[run.clone()]
-                        .iter()
-                        .zip(&lifts.off[run.clone()])
-                        .zip(&lifts.scale[run]);
-                    for ((&wt, &o), &s) in near {
-                        let weighs = if wt > 0.0 { 1.0 } else { 0.0 };
-                        off += weighs * o;
-                        scale += weighs * s;
+                    let rows = [
+                        &weights[run.clone()],
+                        &lifts.off[run.clone()],
+                        &lifts.scale[run],
+                    ];
+                    // A whole neighbourhood's row as fixed arrays (a loop the compiler
+                    // unrolls), else the clipped row; the same sums in the same order.
+                    match rows.map(<&[f32; LOCAL_SIDE_PX]>::try_from) {
+                        [Ok(wt), Ok(o), Ok(s)] => add_weighed(*wt, *o, *s, &mut off, &mut scale),
+                        _ => {
+                            let [wt, o, s] = rows.map(|r| r.iter().copied());
+                            add_weighed(wt, o, s, &mut off, &mut scale);
+                        }
                     }
                 }
                 if off > limit * scale {
