@@ -631,8 +631,8 @@ impl Tracker {
             .collect()
     }
 
-    /// A colour marker with a candidate at a place where another of its look has one too
-    /// pays, at each of its places, the log of how much wider its normal gate is than the
+    /// A colour marker with a candidate at a place where another of its look has one too,
+    /// both cheaper than staying unmatched (a place either could take), pays, at each of its places, the log of how much wider its normal gate is than the
     /// narrowest of theirs. The motion costs are relative to each marker's own prediction,
     /// so that alone a marker with a wide gate (one just missed, whose variance grew) pays
     /// little for a far place, and it took the place of a same-look marker predicted there
@@ -654,7 +654,8 @@ impl Tracker {
                         && colour(q)
                         && same_look(&self.markers[undecided[r]], &self.markers[undecided[q]])
                         && (0..cols).any(|j| {
-                            cost[r * cols + j].is_finite() && cost[q * cols + j].is_finite()
+                            cost[r * cols + j] < UNMATCHED_COST
+                                && cost[q * cols + j] < UNMATCHED_COST
                         })
                 });
                 let narrowest = rivals.map(spread).fold(f64::INFINITY, f64::min);
