@@ -63,10 +63,9 @@ const STREAK_LOCAL_RADIUS_PX: usize = 2;
 /// blob three pixels across in both directions holds a sampled pixel (the smallest marker,
 /// 12 px, and its streak are several times that; a sliver of a marker under three pixels
 /// wide, at an occluder's edge, may be missed, as one under two was before). Three against
-/// two before: a ninth of a gate weighed in the sampling
-/// pass, not a quarter (`track_into` on the combined stress condition, seed 1000: 854.8 M
-/// instructions with 2, 738.3 M with 3, 675.3 M with 4; see `docs/validation.md` for the
-/// tracks).
+/// two before: a ninth of a gate weighed in the sampling pass, not a quarter (`track_into`
+/// on the combined stress condition, seed 1000: 854.8 M instructions with 2, 738.3 M with
+/// 3, 675.3 M with 4; see `docs/validation.md` for the tracks).
 const SPARSE_STEP_PX: usize = 3;
 /// Cells about each cell with a sampled hit that a sparse [`Region::fill`] weighs in full (a
 /// cell is half a marker window): a blob, its edge and the window about its centre.

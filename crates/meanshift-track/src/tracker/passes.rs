@@ -632,13 +632,14 @@ impl Tracker {
     }
 
     /// A colour marker with a candidate at a place where another of its look has one too,
-    /// both cheaper than staying unmatched (a place either could take), pays, at each of its places, the log of how much wider its normal gate is than the
-    /// narrowest of theirs. The motion costs are relative to each marker's own prediction,
-    /// so that alone a marker with a wide gate (one just missed, whose variance grew) pays
-    /// little for a far place, and it took the place of a same-look marker predicted there
-    /// (stress combined seed 16002: A, hidden behind a branch with a gate 48 px wide, took
-    /// B's place 27 px from A's prediction and 4 px from B's, and held it for 8 frames while
-    /// B was in plain view). Against one another the likelihoods count whole: a density
+    /// both cheaper than staying unmatched (a place either could take), pays, at each of its
+    /// places, the log of how much wider its normal gate is than the narrowest of theirs.
+    /// The motion costs are relative to each marker's own prediction, so that alone a marker
+    /// with a wide gate (one just missed, whose variance grew) pays little for a far place,
+    /// and it took the place of a same-look marker predicted there (stress combined seed
+    /// 16002: A, hidden behind a branch with a gate 48 px wide, took B's place 27 px from
+    /// A's prediction and 4 px from B's, and held it for 8 frames while B was in plain
+    /// view). Against one another the likelihoods count whole: a density
     /// spread over a wide gate is lower at every place by the ratio of the gates' areas
     /// (the normaliser of the Gaussian, the same at all of that marker's places, so its
     /// choice among them stays). The unmatched cost stays: alone, a marker with a wide gate
